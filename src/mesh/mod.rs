@@ -1,0 +1,25 @@
+//! Mesh topology, generators, checks and OBJ input/output. Plain arrays, no ECS.
+
+pub mod generate;
+pub mod obj;
+pub mod topology;
+
+pub use generate::{grid, tet_slab, GridPattern};
+pub use topology::{check_surface, edges, surface_of_tets, EdgeInfo, MeshError};
+
+use glam::{DVec2, DVec3};
+
+/// A triangle surface: rest positions (m), material coordinates (m) and faces.
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceMesh {
+    pub rest: Vec<DVec3>,
+    pub uv: Vec<DVec2>,
+    pub faces: Vec<[u32; 3]>,
+}
+
+/// A tetrahedral solid: rest positions (m) and positively oriented tetrahedra.
+#[derive(Clone, Debug, Default)]
+pub struct TetMesh {
+    pub rest: Vec<DVec3>,
+    pub tets: Vec<[u32; 4]>,
+}

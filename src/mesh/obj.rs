@@ -1,0 +1,51 @@
+//! Wavefront OBJ input (tobj) and output.
+
+use std::io::Write;
+use std::path::Path;
+
+use glam::{DVec2, DVec3};
+
+use super::SurfaceMesh;
+
+/// Loads a triangle surface. Positions are multiplied by `to_metres`; material coordinates come
+/// from `vt` (scaled the same way) or, without texture coordinates, from the rest xy.
+pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, String> {
+    let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
+    let (models, _) = tobj::load_obj(path, &opts).map_err(|e| e.to_string())?;
+    let mut m = SurfaceMesh::default();
+    for model in models {
+        let mesh = model.mesh;
+        let base = m.rest.len() as u32;
+        let nv = mesh.positions.len() / 3;
+        m.rest.extend(mesh.positions.chunks_exact(3).map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * to_metres));
+        let mut uv: Vec<Option<DVec2>> = vec![None; nv];
+        if !mesh.texcoords.is_empty() && mesh.texcoord_indices.len() == mesh.indices.len() {
+            for (vi, ti) in mesh.indices.iter().zip(&mesh.texcoord_indices) {
+                let t = &mesh.texcoords[2 * *ti as usize..2 * *ti as usize + 2];
+                uv[*vi as usize].get_or_insert(DVec2::new(t[0] as f64, t[1] as f64) * to_metres);
+            }
+        }
+        for (i, u) in uv.into_iter().enumerate() {
+            let p = m.rest[base as usize + i];
+            m.uv.push(u.unwrap_or(DVec2::new(p.x, p.y)));
+        }
+        m.faces.extend(mesh.indices.chunks_exact(3).map(|f| [f[0] + base, f[1] + base, f[2] + base]));
+    }
+    Ok(m)
+}
+
+/// Writes positions (m) as `v`, material coordinates (m) as `vt`, and faces `f v/vt`.
+pub fn write(path: &Path, positions: &[DVec3], uv: &[DVec2], faces: &[[u32; 3]]) -> std::io::Result<()> {
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+    for p in positions {
+        writeln!(w, "v {:.17e} {:.17e} {:.17e}", p.x, p.y, p.z)?;
+    }
+    for t in uv {
+        writeln!(w, "vt {:.17e} {:.17e}", t.x, t.y)?;
+    }
+    for f in faces {
+        let (a, b, c) = (f[0] + 1, f[1] + 1, f[2] + 1);
+        writeln!(w, "f {a}/{a} {b}/{b} {c}/{c}")?;
+    }
+    w.flush()
+}

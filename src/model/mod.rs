@@ -1,0 +1,234 @@
+//! The ECS vocabulary (ARCHITECTURE.md 3): small components, named relationships, resources.
+//!
+//! Entity handles are the identity; the solver's packed indices are a cache (solve::body).
+
+use bevy_ecs::prelude::*;
+use glam::{DMat2, DMat3, DVec2, DVec3};
+
+use crate::physics::{ConstitutiveModel, HingeModel, HingeRest, Lame};
+use crate::scene::schema::SolverSpec;
+
+mod drivers;
+mod resources;
+pub use drivers::*;
+pub use resources::*;
+
+// ---------------------------------------------------------------- patches and layers
+
+/// A skin patch: one independent solve problem.
+#[derive(Component, Clone, Debug)]
+pub struct Patch {
+    pub name: String,
+    /// Position of the patch in the scene file (stable ordering for outputs).
+    pub index: u32,
+}
+
+/// The patch's solver settings, already in SI units.
+#[derive(Component, Clone, Debug)]
+pub struct SolverSettings(pub SolverSpec);
+
+/// What a layer is made of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum LayerKind {
+    /// A thin shell: membrane triangles and hinge bending.
+    Shell,
+    /// A tetrahedral solid.
+    Volume,
+    /// Prescribed motion only (a blend-shape base or a body).
+    Kinematic,
+}
+
+#[derive(Component, Clone, Debug)]
+pub struct Layer {
+    pub name: String,
+    pub kind: LayerKind,
+    /// Position of the layer in its patch (stable ordering).
+    pub index: u32,
+}
+
+/// Layer -> Patch.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+#[relationship(relationship_target = PatchLayers)]
+pub struct LayerOf(pub Entity);
+
+/// Patch -> its layers (maintained by bevy).
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = LayerOf, linked_spawn)]
+pub struct PatchLayers(Vec<Entity>);
+
+impl PatchLayers {
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+/// Elastic material of a shell or volume layer, SI units.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct Material {
+    pub model: ConstitutiveModel,
+    pub young: f64,
+    pub poisson: f64,
+    pub density: f64,
+    /// Lame parameters used by the elements (plane stress for shells).
+    pub lame: Lame,
+}
+
+/// Shell thickness (m).
+#[derive(Component, Clone, Copy, Debug)]
+pub struct Thickness(pub f64);
+
+/// Hinge bending of a shell layer: k_b = D / 6 x scale (PHYSICS.md 1.2).
+#[derive(Component, Clone, Copy, Debug)]
+pub struct Bending {
+    pub model: HingeModel,
+    pub stiffness: f64,
+}
+
+/// Bumped whenever a layer's connectivity changes; the solver rebuilds its pattern then.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TopologyEpoch(pub u64);
+
+// ---------------------------------------------------------------- vertices
+
+/// Vertex -> Layer.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+#[relationship(relationship_target = LayerVertices)]
+pub struct VertexOf(pub Entity);
+
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = VertexOf, linked_spawn)]
+pub struct LayerVertices(Vec<Entity>);
+
+impl LayerVertices {
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+/// Material-space coordinates (m): the 2D parameterization of a shell, the rest xy of a solid.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct MaterialPos(pub DVec2);
+
+/// Reference (rest) position in 3D (m).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct RestPos(pub DVec3);
+
+/// Current position (m).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Position(pub DVec3);
+
+/// Current velocity (m/s).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Default)]
+pub struct Velocity(pub DVec3);
+
+/// Lumped mass (kg).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Default)]
+pub struct Mass(pub f64);
+
+/// Which coordinates of a vertex are prescribed (eliminated from the solve). Drivers write
+/// their values into `Position`.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Prescribed(pub [bool; 3]);
+
+// ---------------------------------------------------------------- edges, faces, tets
+
+/// Edge -> Layer.
+#[derive(Component, Clone, Copy, Debug)]
+#[relationship(relationship_target = LayerEdges)]
+pub struct EdgeOf(pub Entity);
+
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = EdgeOf, linked_spawn)]
+pub struct LayerEdges(Vec<Entity>);
+
+impl LayerEdges {
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+#[derive(Component, Clone, Copy, Debug)]
+pub struct EdgeVerts(pub [Entity; 2]);
+
+/// A bending hinge on an interior edge: the two opposite vertices and the rest data.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct Hinge {
+    pub opposite: [Entity; 2],
+    pub rest: HingeRest,
+}
+
+/// Face -> Layer.
+#[derive(Component, Clone, Copy, Debug)]
+#[relationship(relationship_target = LayerFaces)]
+pub struct FaceOf(pub Entity);
+
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = FaceOf, linked_spawn)]
+pub struct LayerFaces(Vec<Entity>);
+
+impl LayerFaces {
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+#[derive(Component, Clone, Copy, Debug)]
+pub struct FaceVerts(pub [Entity; 3]);
+
+/// Rest shape of a membrane triangle: Dm^-1 F0 and thickness x area.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct FaceRest(pub crate::physics::membrane::MembraneRest);
+
+/// Membrane prestrain F0 (H15 4.3); identity when absent.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct FacePrestrain(pub DMat2);
+
+/// Tet -> Layer.
+#[derive(Component, Clone, Copy, Debug)]
+#[relationship(relationship_target = LayerTets)]
+pub struct TetOf(pub Entity);
+
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = TetOf, linked_spawn)]
+pub struct LayerTets(Vec<Entity>);
+
+impl LayerTets {
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+#[derive(Component, Clone, Copy, Debug)]
+pub struct TetVerts(pub [Entity; 4]);
+
+#[derive(Component, Clone, Copy, Debug)]
+pub struct TetRestShape(pub crate::physics::tet::TetRest);
+
+/// Tetrahedron prestrain F0; identity when absent.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct TetPrestrain(pub DMat3);
+
+// ---------------------------------------------------------------- springs
+
+/// A zero-length attachment spring between two vertices (PHYSICS.md 1.5), held by the layer of `a`.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct Spring {
+    pub a: Entity,
+    pub b: Entity,
+    pub stiffness: f64,
+}
+
+/// Spring -> Layer.
+#[derive(Component, Clone, Copy, Debug)]
+#[relationship(relationship_target = LayerSprings)]
+pub struct SpringOf(pub Entity);
+
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = SpringOf, linked_spawn)]
+pub struct LayerSprings(Vec<Entity>);
+
+impl LayerSprings {
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}

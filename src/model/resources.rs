@@ -1,0 +1,118 @@
+//! World-wide resources: the clock, per-stage timings, the frame report and failures.
+
+use bevy_ecs::prelude::*;
+use serde::Serialize;
+
+/// Simulation clock: the frame being computed and its time.
+#[derive(Resource, Clone, Copy, Debug, Default)]
+pub struct SimClock {
+    /// Frame index being computed (frame 0 is the first solved frame).
+    pub frame: u32,
+    /// Time at the end of this frame (s).
+    pub time: f64,
+    /// Time per frame (s).
+    pub dt: f64,
+}
+
+/// The ten stages of a frame (ARCHITECTURE.md 2), in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stage {
+    BlendShapes,
+    Remesh,
+    PropertyResample,
+    ConstraintResample,
+    ConstraintAdjust,
+    AnchorWalk,
+    Assemble,
+    Solve,
+    Writeback,
+    Log,
+}
+
+impl Stage {
+    pub const ALL: [Stage; 10] = [
+        Stage::BlendShapes,
+        Stage::Remesh,
+        Stage::PropertyResample,
+        Stage::ConstraintResample,
+        Stage::ConstraintAdjust,
+        Stage::AnchorWalk,
+        Stage::Assemble,
+        Stage::Solve,
+        Stage::Writeback,
+        Stage::Log,
+    ];
+    /// Column name in stats.jsonl.
+    pub fn key(self) -> &'static str {
+        match self {
+            Stage::BlendShapes => "blend_shapes",
+            Stage::Remesh => "remesh",
+            Stage::PropertyResample => "property_resample",
+            Stage::ConstraintResample => "constraint_resample",
+            Stage::ConstraintAdjust => "constraint_adjust",
+            Stage::AnchorWalk => "anchor_walk",
+            Stage::Assemble => "assemble",
+            Stage::Solve => "solve",
+            Stage::Writeback => "writeback",
+            Stage::Log => "log",
+        }
+    }
+}
+
+/// Wall time per stage in the current frame (ms), reset at the start of each frame.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct Timings {
+    pub ms: [f64; 10],
+    started: Option<std::time::Instant>,
+}
+
+impl Timings {
+    pub fn reset(&mut self) {
+        self.ms = [0.0; 10];
+        self.started = None;
+    }
+    pub fn begin(&mut self) {
+        self.started = Some(std::time::Instant::now());
+    }
+    pub fn end(&mut self, stage: Stage) {
+        if let Some(t) = self.started.take() {
+            self.ms[stage as usize] += t.elapsed().as_secs_f64() * 1e3;
+        }
+    }
+    pub fn get(&self, stage: Stage) -> f64 {
+        self.ms[stage as usize]
+    }
+}
+
+/// One patch's result for the frame.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PatchReport {
+    pub name: String,
+    pub vertices: usize,
+    pub faces: usize,
+    pub tets: usize,
+    pub newton_iterations: u32,
+    pub converged: bool,
+    /// Final gradient norm over free DOFs divided by the internal force scale.
+    pub residual: f64,
+    /// Total energy (J): elastic + springs (+ inertia term in dynamic mode).
+    pub energy: f64,
+    /// Energy by element kind (J).
+    pub energy_membrane: f64,
+    pub energy_bending: f64,
+    pub energy_volume: f64,
+    pub energy_springs: f64,
+    /// Factorizations that needed a diagonal shift.
+    pub regularized: u32,
+    pub line_search_failures: u32,
+}
+
+/// Per-patch reports of the last solved frame, in patch order.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct FrameReport {
+    pub patches: Vec<PatchReport>,
+}
+
+/// A simulation failure (NaN, breakdown): the run stops after the frame that set it.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct SimFailure(pub Option<String>);

@@ -1,0 +1,150 @@
+//! Discrete-shell hinge bending on an interior edge (PHYSICS.md 1.2; H15 eq. 5.11-5.14).
+//!
+//! Vertex order: x0, x1 the shared edge; x2 the opposite vertex of face (x0, x1, x2);
+//! x3 the opposite vertex of face (x1, x0, x3). W = k_b 3 |e_bar|^2 / A_bar (phi(theta) - phi_bar)^2.
+
+use glam::DVec3;
+use nalgebra::{SMatrix, SVector};
+use num_dual::{DualNum, DualSVec64};
+use serde::{Deserialize, Serialize};
+
+use super::psd::{project, Filter};
+
+/// phi(theta): how the hinge energy grows with the dihedral angle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum HingeModel {
+    /// phi = theta.
+    Linear,
+    /// phi = 2 sin(theta / 2).
+    Sin,
+    /// phi = 2 tan(theta / 2) (H15 eq. 5.13): infinite energy at a full fold.
+    #[default]
+    Tan,
+}
+
+impl HingeModel {
+    /// phi, phi', phi'' at theta.
+    pub fn phi(self, t: f64) -> (f64, f64, f64) {
+        match self {
+            HingeModel::Linear => (t, 1.0, 0.0),
+            HingeModel::Sin => {
+                let (s, c) = (t / 2.0).sin_cos();
+                (2.0 * s, c, -0.5 * s)
+            }
+            HingeModel::Tan => {
+                let tn = (t / 2.0).tan();
+                let sec2 = 1.0 + tn * tn;
+                (2.0 * tn, sec2, sec2 * tn)
+            }
+        }
+    }
+}
+
+/// Rest data of one hinge.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HingeRest {
+    /// k_b * 3 |e_bar|^2 / A_bar (J).
+    pub weight: f64,
+    /// phi(theta_bar): the rest (or prestrained) bend.
+    pub rest_phi: f64,
+}
+
+impl HingeRest {
+    /// k_b is the hinge stiffness (N m); `PHYSICS.md 1.2`: k_b = D / 6 reproduces Kirchhoff
+    /// bending on equilateral meshes.
+    pub fn from_rest(model: HingeModel, k_b: f64, x: [DVec3; 4]) -> Self {
+        let e2 = (x[1] - x[0]).length_squared();
+        let a = 0.5 * ((x[1] - x[0]).cross(x[2] - x[0]).length() + (x[1] - x[0]).cross(x[3] - x[0]).length());
+        let theta = dihedral_f64(&x);
+        HingeRest { weight: k_b * 3.0 * e2 / a, rest_phi: model.phi(theta).0 }
+    }
+}
+
+fn cross<D: DualNum<Primitive = f64> + Copy>(a: [D; 3], b: [D; 3]) -> [D; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+fn dot<D: DualNum<Primitive = f64> + Copy>(a: [D; 3], b: [D; 3]) -> D {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn sub<D: DualNum<Primitive = f64> + Copy>(a: [D; 3], b: [D; 3]) -> [D; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Signed dihedral angle (0 when flat), generic so that AD gives its derivatives.
+pub fn dihedral<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> D {
+    let e = sub(x[1], x[0]);
+    let na = cross(e, sub(x[2], x[0]));
+    let nb = cross(sub(x[0], x[1]), sub(x[3], x[1]));
+    let el = dot(e, e).sqrt();
+    let s = dot(cross(na, nb), e) / el;
+    s.atan2(dot(na, nb))
+}
+
+/// Gradient of the dihedral angle with respect to (x0, x1, x2, x3), in closed form (Bridson,
+/// Marino, Fedkiw 2003): the opposite vertices move along their face normals over the heights,
+/// the edge vertices by the projections of the opposite vertices on the edge. Generic so that
+/// first-order AD of it gives the exact Hessian.
+pub fn dihedral_gradient<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
+    let e = sub(x[1], x[0]);
+    let l = dot(e, e).sqrt();
+    let na = cross(e, sub(x[2], x[0]));
+    let nb = cross(sub(x[0], x[1]), sub(x[3], x[1]));
+    let (ia, ib) = (dot(na, na).recip(), dot(nb, nb).recip());
+    let a: [D; 3] = std::array::from_fn(|k| na[k] * ia);
+    let b: [D; 3] = std::array::from_fn(|k| nb[k] * ib);
+    let il = l.recip();
+    let d21 = dot(sub(x[2], x[1]), e) * il;
+    let d31 = dot(sub(x[3], x[1]), e) * il;
+    let d20 = dot(sub(x[2], x[0]), e) * il;
+    let d30 = dot(sub(x[3], x[0]), e) * il;
+    [
+        std::array::from_fn(|k| -(d21 * a[k] + d31 * b[k])),
+        std::array::from_fn(|k| d20 * a[k] + d30 * b[k]),
+        std::array::from_fn(|k| -(l * a[k])),
+        std::array::from_fn(|k| -(l * b[k])),
+    ]
+}
+
+/// Dihedral angle in plain f64.
+pub fn dihedral_f64(x: &[DVec3; 4]) -> f64 {
+    dihedral(&x.map(|v| v.to_array()))
+}
+
+/// Energy only.
+pub fn energy(model: HingeModel, rest: &HingeRest, x: &[DVec3; 4]) -> f64 {
+    let d = model.phi(dihedral_f64(x)).0 - rest.rest_phi;
+    rest.weight * d * d
+}
+
+/// Energy, gradient (12) and Hessian (12x12), projected on the full 12x12 when asked.
+pub fn eval(
+    model: HingeModel,
+    rest: &HingeRest,
+    x: &[DVec3; 4],
+    filter: Filter,
+) -> (f64, SVector<f64, 12>, SMatrix<f64, 12, 12>) {
+    let xd: [[DualSVec64<12>; 3]; 4] =
+        std::array::from_fn(|v| std::array::from_fn(|k| DualSVec64::from_re(x[v][k]).derivative(3 * v + k)));
+    let gd = dihedral_gradient(&xd);
+    let mut gt = SVector::<f64, 12>::zeros();
+    let mut ht = SMatrix::<f64, 12, 12>::zeros();
+    for v in 0..4 {
+        for k in 0..3 {
+            let g = &gd[v][k];
+            gt[3 * v + k] = g.re;
+            let row = g.eps.clone().unwrap_generic(nalgebra::Const::<12>, nalgebra::U1);
+            for j in 0..12 {
+                ht[(3 * v + k, j)] = row[j];
+            }
+        }
+    }
+    let theta = dihedral_f64(x);
+    let (phi, d1, d2) = model.phi(theta);
+    let d = phi - rest.rest_phi;
+    // W = w d^2: W' = 2 w d phi', W'' = 2 w (phi'^2 + d phi'').
+    let w1 = 2.0 * rest.weight * d * d1;
+    let w2 = 2.0 * rest.weight * (d1 * d1 + d * d2);
+    let mut h = gt * gt.transpose() * w2 + ht * w1;
+    project(&mut h, filter);
+    (rest.weight * d * d, gt * w1, h)
+}

@@ -1,0 +1,131 @@
+//! Shell membrane triangle (PHYSICS.md 1.1): energy = thickness x rest area x Psi(F),
+//! F = Ds B with Ds = [x1 - x0, x2 - x0] (3x2) and B = Dm^-1 F0 (2x2, prestrain folded in).
+
+use glam::{DMat2, DVec2, DVec3};
+use nalgebra::{SMatrix, SVector};
+use num_dual::Dual2SVec64;
+
+use super::material::{membrane_psi, ConstitutiveModel, Lame};
+use super::psd::{project, Filter};
+
+/// Rest data of one membrane element.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MembraneRest {
+    /// Dm^-1 F0: maps the deformed edge matrix to the deformation gradient.
+    pub b: DMat2,
+    /// Thickness x rest area (m^3): the energy weight.
+    pub volume: f64,
+}
+
+impl MembraneRest {
+    /// Rest data from a rest triangle in 3D (its own orthonormal 2D frame) and a prestrain F0.
+    /// Returns None for a degenerate triangle.
+    pub fn from_rest_triangle(x: [DVec3; 3], thickness: f64, f0: DMat2) -> Option<Self> {
+        let dm = rest_edge_matrix(x)?;
+        let area = 0.5 * dm.determinant();
+        Some(MembraneRest { b: dm.inverse() * f0, volume: thickness * area })
+    }
+}
+
+/// 2x2 rest edge matrix of a triangle in its own frame (H15 eq. 5.5-5.8: QR of the 3x2 edges).
+pub fn rest_edge_matrix(x: [DVec3; 3]) -> Option<DMat2> {
+    let e1 = x[1] - x[0];
+    let e2 = x[2] - x[0];
+    let l1 = e1.length();
+    if l1 <= 0.0 {
+        return None;
+    }
+    let t = e1 / l1;
+    let n = e1.cross(e2);
+    if n.length() <= 1e-14 * l1 * e2.length().max(l1) {
+        return None;
+    }
+    let s = n.cross(t).normalize();
+    Some(DMat2::from_cols(DVec2::new(l1, 0.0), DVec2::new(e2.dot(t), e2.dot(s))))
+}
+
+/// d F[:, j] / d x_v = coef[v][j] * I3.
+#[inline]
+fn coefficients(b: &DMat2) -> [[f64; 2]; 3] {
+    let (b00, b01, b10, b11) = (b.x_axis.x, b.y_axis.x, b.x_axis.y, b.y_axis.y);
+    [[-(b00 + b10), -(b01 + b11)], [b00, b01], [b10, b11]]
+}
+
+#[inline]
+fn deformation_gradient(rest: &MembraneRest, x: &[DVec3; 3]) -> [f64; 6] {
+    let c = coefficients(&rest.b);
+    let mut f = [0.0; 6];
+    for j in 0..2 {
+        let col = x[0] * c[0][j] + x[1] * c[1][j] + x[2] * c[2][j];
+        f[3 * j] = col.x;
+        f[3 * j + 1] = col.y;
+        f[3 * j + 2] = col.z;
+    }
+    f
+}
+
+/// Energy only (line searches).
+pub fn energy(model: ConstitutiveModel, lame: Lame, rest: &MembraneRest, x: &[DVec3; 3]) -> f64 {
+    rest.volume * membrane_psi(model, lame, &deformation_gradient(rest, x))
+}
+
+/// Energy, gradient (9) and Hessian (9x9). The Hessian is projected at the F level (6x6),
+/// which keeps the element Hessian PSD because F is linear in x.
+pub fn eval(
+    model: ConstitutiveModel,
+    lame: Lame,
+    rest: &MembraneRest,
+    x: &[DVec3; 3],
+    filter: Filter,
+) -> (f64, SVector<f64, 9>, SMatrix<f64, 9, 9>) {
+    let f = deformation_gradient(rest, x);
+    let fd: [Dual2SVec64<6>; 6] = std::array::from_fn(|i| Dual2SVec64::from_re(f[i]).derivative(i));
+    let psi = membrane_psi(model, lame, &fd);
+    let p = psi.v1.unwrap_generic(nalgebra::U1, nalgebra::Const::<6>);
+    let mut hf = psi.v2.unwrap_generic(nalgebra::Const::<6>, nalgebra::Const::<6>);
+    project(&mut hf, filter);
+    chain_to_vertices::<6, 2, 3, 9>(rest.volume, psi.re, &p.transpose(), &hf, &coefficients(&rest.b))
+}
+
+/// Maps dPsi/dF and d2Psi/dF2 (F with NC columns of 3) to vertex gradient and Hessian through
+/// F[:, j] = sum_v coef[v][j] x_v.
+pub(crate) fn chain_to_vertices<const NF: usize, const NC: usize, const NV: usize, const NX: usize>(
+    weight: f64,
+    psi: f64,
+    p: &SVector<f64, NF>,
+    hf: &SMatrix<f64, NF, NF>,
+    coef: &[[f64; NC]; NV],
+) -> (f64, SVector<f64, NX>, SMatrix<f64, NX, NX>) {
+    let mut g = SVector::<f64, NX>::zeros();
+    for v in 0..NV {
+        for j in 0..NC {
+            for k in 0..3 {
+                g[3 * v + k] += weight * coef[v][j] * p[3 * j + k];
+            }
+        }
+    }
+    // First contract the F-Hessian with coefficients along columns, then rows.
+    let mut t = SMatrix::<f64, NX, NF>::zeros(); // t[(3v+k), (3l+m)] = sum_j c[v][j] hf[(3j+k),(3l+m)]
+    for v in 0..NV {
+        for j in 0..NC {
+            let c = coef[v][j];
+            for k in 0..3 {
+                for q in 0..NF {
+                    t[(3 * v + k, q)] += c * hf[(3 * j + k, q)];
+                }
+            }
+        }
+    }
+    let mut h = SMatrix::<f64, NX, NX>::zeros();
+    for w in 0..NV {
+        for l in 0..NC {
+            let c = weight * coef[w][l];
+            for m in 0..3 {
+                for r in 0..NX {
+                    h[(r, 3 * w + m)] += c * t[(r, 3 * l + m)];
+                }
+            }
+        }
+    }
+    (weight * psi, g, h)
+}

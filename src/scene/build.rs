@@ -1,0 +1,393 @@
+//! Reading, validating and building a scene: everything `skinsim check` verifies.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{DVec2, DVec3};
+
+use super::error::SceneError;
+use super::schema::*;
+use crate::mesh::{self, SurfaceMesh, TetMesh};
+use crate::model::LayerKind;
+use crate::physics::Lame;
+
+/// A validated scene with its meshes built, in SI units.
+#[derive(Clone, Debug)]
+pub struct BuiltScene {
+    pub path: PathBuf,
+    pub scene: Scene,
+    pub patches: Vec<BuiltPatch>,
+}
+
+#[derive(Clone, Debug)]
+pub struct BuiltPatch {
+    pub name: String,
+    pub solver: SolverSpec,
+    pub layers: Vec<BuiltLayer>,
+    pub drivers: Vec<BuiltDriver>,
+}
+
+#[derive(Clone, Debug)]
+pub enum LayerMesh {
+    Surface(SurfaceMesh),
+    Volume(TetMesh),
+}
+
+impl LayerMesh {
+    pub fn rest(&self) -> &[DVec3] {
+        match self {
+            LayerMesh::Surface(m) => &m.rest,
+            LayerMesh::Volume(m) => &m.rest,
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct BuiltLayer {
+    pub name: String,
+    pub kind: LayerKind,
+    pub mesh: LayerMesh,
+    pub material: Option<crate::model::Material>,
+    pub thickness: Option<f64>,
+    pub bending: Option<crate::model::Bending>,
+}
+
+/// Drivers with layer names resolved to indices and values in SI units.
+#[derive(Clone, Debug)]
+pub enum BuiltDriver {
+    Pin { layer: usize, vertices: Vec<u32>, dofs: [bool; 3] },
+    Compress { layers: Vec<usize>, axis: usize, keyframes: Vec<(u32, f64)>, predict: bool },
+    Bend { layers: Vec<usize>, axis: usize, keyframes: Vec<(u32, f64)> },
+    /// Springs (vertex of `layer`, vertex of `to`, stiffness N/m).
+    Attach { layer: usize, to: usize, springs: Vec<(u32, u32, f64)> },
+}
+
+/// Reads, validates and builds a scene file.
+pub fn load(path: &Path) -> Result<BuiltScene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+        file: path.to_path_buf(),
+        position: None,
+        field: None,
+        message: format!("cannot read the scene file: {e}"),
+    })?;
+    load_str(&text, path)
+}
+
+/// Parses, validates and builds a scene given as text; `path` names it in errors and anchors
+/// relative asset paths.
+pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
+    let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+    let scene: Scene = options.from_str(text).map_err(|e| SceneError {
+        file: path.to_path_buf(),
+        position: Some((e.span.start.line, e.span.start.col)),
+        field: None,
+        message: e.code.to_string(),
+    })?;
+    Builder { file: path.to_path_buf(), dir: path.parent().map(Path::to_path_buf).unwrap_or_default() }.build(scene)
+}
+
+struct Builder {
+    file: PathBuf,
+    dir: PathBuf,
+}
+
+impl Builder {
+    fn err(&self, field: impl Into<String>, message: impl Into<String>) -> SceneError {
+        SceneError::at_field(&self.file, field, message)
+    }
+
+    fn build(&self, scene: Scene) -> Result<BuiltScene, SceneError> {
+        if scene.patches.is_empty() {
+            return Err(self.err("patches", "the scene is empty: it declares no patch"));
+        }
+        if scene.frames == 0 {
+            return Err(self.err("frames", "must be at least 1"));
+        }
+        if !(scene.frame_time > 0.0 && scene.frame_time.is_finite()) {
+            return Err(self.err("frame_time", format!("must be a positive number of seconds (got {})", scene.frame_time)));
+        }
+        let mut names = HashMap::new();
+        let mut patches = Vec::new();
+        for (pi, p) in scene.patches.iter().enumerate() {
+            if let Some(prev) = names.insert(p.name.clone(), pi) {
+                return Err(self.err(format!("patches[{pi}].name"), format!("\"{}\" is also the name of patches[{prev}]", p.name)));
+            }
+            patches.push(self.patch(&scene, pi, p)?);
+        }
+        Ok(BuiltScene { path: self.file.clone(), scene, patches })
+    }
+
+    fn patch(&self, scene: &Scene, pi: usize, p: &PatchSpec) -> Result<BuiltPatch, SceneError> {
+        let at = format!("patches[{pi}] (\"{}\")", p.name);
+        let len = scene.units.length.to_si();
+        let stress = scene.units.stress.to_si();
+        if p.layers.is_empty() {
+            return Err(self.err(format!("{at}.layers"), "a patch needs at least one layer"));
+        }
+        let s = &p.solver;
+        if !(s.tolerance > 0.0) {
+            return Err(self.err(format!("{at}.solver.tolerance"), format!("must be > 0 (got {})", s.tolerance)));
+        }
+        if s.max_iterations == 0 {
+            return Err(self.err(format!("{at}.solver.max_iterations"), "must be at least 1"));
+        }
+        let mut solver = s.clone();
+        if let Some(pert) = &mut solver.perturbation {
+            if !(pert.amplitude >= 0.0 && pert.amplitude.is_finite()) {
+                return Err(self.err(format!("{at}.solver.perturbation.amplitude"), "must be >= 0"));
+            }
+            pert.amplitude *= len;
+        }
+        let offset = DVec3::new(p.offset.0, p.offset.1, p.offset.2) * len;
+        let mut layers: Vec<BuiltLayer> = Vec::new();
+        let mut index = HashMap::new();
+        for (li, l) in p.layers.iter().enumerate() {
+            let lat = format!("{at}.layers[{li}] (\"{}\")", l.name);
+            if let Some(prev) = index.insert(l.name.clone(), li) {
+                return Err(self.err(format!("{lat}.name"), format!("also the name of layers[{prev}]")));
+            }
+            layers.push(self.layer(&lat, l, len, stress, offset)?);
+        }
+        let find = |field: String, name: &str| -> Result<usize, SceneError> {
+            index.get(name).copied().ok_or_else(|| self.err(field, format!("no layer named \"{name}\" in this patch")))
+        };
+        let mut drivers = Vec::new();
+        for (di, d) in p.drivers.iter().enumerate() {
+            let dat = format!("{at}.drivers[{di}]");
+            let keyframes_ok = |k: &Vec<(u32, f64)>, what: &str| -> Result<(), SceneError> {
+                if k.is_empty() {
+                    return Err(self.err(format!("{dat}.keyframes"), "needs at least one keyframe"));
+                }
+                for (i, w) in k.windows(2).enumerate() {
+                    if w[1].0 <= w[0].0 {
+                        return Err(self.err(
+                            format!("{dat}.keyframes[{}]", i + 1),
+                            format!("keyframes out of order: frame {} comes after frame {}", w[1].0, w[0].0),
+                        ));
+                    }
+                }
+                if let Some((i, _)) = k.iter().enumerate().find(|(_, kv)| !kv.1.is_finite()) {
+                    return Err(self.err(format!("{dat}.keyframes[{i}]"), format!("{what} must be finite")));
+                }
+                Ok(())
+            };
+            drivers.push(match d {
+                DriverSpec::Pin { layer, select, dofs } => {
+                    let li = find(format!("{dat}.layer"), layer)?;
+                    let vertices = select_vertices(layers[li].mesh.rest(), select, len, offset);
+                    if vertices.is_empty() {
+                        return Err(self.err(format!("{dat}.select"), "selects no vertex"));
+                    }
+                    BuiltDriver::Pin { layer: li, vertices, dofs: [dofs.x, dofs.y, dofs.z] }
+                }
+                DriverSpec::Compress { layers: ls, axis, keyframes, predict } => {
+                    keyframes_ok(keyframes, "strain")?;
+                    if let Some((i, _)) = keyframes.iter().enumerate().find(|(_, k)| k.1 >= 1.0) {
+                        return Err(self.err(format!("{dat}.keyframes[{i}]"), "a strain of 1 or more collapses the patch"));
+                    }
+                    let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                    BuiltDriver::Compress { layers, axis: axis.index(), keyframes: keyframes.clone(), predict: *predict }
+                }
+                DriverSpec::Bend { layers: ls, axis, keyframes } => {
+                    keyframes_ok(keyframes, "curvature")?;
+                    if *axis == Axis::Z {
+                        return Err(self.err(format!("{dat}.axis"), "the cylinder axis must lie in the plane (X or Y)"));
+                    }
+                    let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                    let keyframes = keyframes.iter().map(|&(f, k)| (f, k / len)).collect();
+                    BuiltDriver::Bend { layers, axis: axis.index(), keyframes }
+                }
+                DriverSpec::Attach { layer, to, stiffness } => {
+                    let a = find(format!("{dat}.layer"), layer)?;
+                    let b = find(format!("{dat}.to"), to)?;
+                    if !(*stiffness > 0.0 && stiffness.is_finite()) {
+                        return Err(self.err(format!("{dat}.stiffness"), format!("must be > 0 (got {stiffness})")));
+                    }
+                    let springs = self.pair_layers(&dat, &layers[a], &layers[b], stiffness * stress / len)?;
+                    BuiltDriver::Attach { layer: a, to: b, springs }
+                }
+            });
+        }
+        Ok(BuiltPatch { name: p.name.clone(), solver, layers, drivers })
+    }
+
+    fn layer(&self, at: &str, l: &LayerSpec, len: f64, stress: f64, offset: DVec3) -> Result<BuiltLayer, SceneError> {
+        let mesh = self.mesh(at, l, len, offset)?;
+        let needs_material = l.kind != LayerKind::Kinematic;
+        let (mut material, mut thickness) = (None, None);
+        match (&l.material, needs_material) {
+            (None, true) => return Err(self.err(format!("{at}.material"), format!("a {:?} layer needs a material", l.kind))),
+            (Some(m), true) => {
+                if !(m.young > 0.0 && m.young.is_finite()) {
+                    return Err(self.err(format!("{at}.material.young"), format!("Young's modulus must be > 0 (got {})", m.young)));
+                }
+                if !(m.poisson > -1.0 && m.poisson < 0.5) {
+                    return Err(self.err(format!("{at}.material.poisson"), format!("Poisson's ratio must be in (-1, 0.5) (got {})", m.poisson)));
+                }
+                if !(m.density > 0.0 && m.density.is_finite()) {
+                    return Err(self.err(format!("{at}.material.density"), format!("must be > 0 kg/m^3 (got {})", m.density)));
+                }
+                let young = m.young * stress;
+                let lame = match l.kind {
+                    LayerKind::Shell => Lame::plane_stress(young, m.poisson),
+                    _ => Lame::solid(young, m.poisson),
+                };
+                material = Some(crate::model::Material { model: m.model, young, poisson: m.poisson, density: m.density, lame });
+                match (l.kind, m.thickness) {
+                    (LayerKind::Shell, None) => return Err(self.err(format!("{at}.material.thickness"), "a shell needs a thickness")),
+                    (LayerKind::Shell, Some(h)) if !(h > 0.0 && h.is_finite()) => {
+                        return Err(self.err(format!("{at}.material.thickness"), format!("must be > 0 (got {h})")))
+                    }
+                    (LayerKind::Shell, Some(h)) => thickness = Some(h * len),
+                    (_, Some(_)) => return Err(self.err(format!("{at}.material.thickness"), "only shells have a thickness")),
+                    _ => {}
+                }
+            }
+            (Some(_), false) => return Err(self.err(format!("{at}.material"), "a kinematic layer has no material")),
+            (None, false) => {}
+        }
+        let bending = match (&l.bending, l.kind) {
+            (None, _) => None,
+            (Some(b), LayerKind::Shell) => {
+                if !(b.scale > 0.0 && b.scale.is_finite()) {
+                    return Err(self.err(format!("{at}.bending.scale"), format!("must be > 0 (got {})", b.scale)));
+                }
+                let m = material.unwrap();
+                let h = thickness.unwrap();
+                let d = m.young * h.powi(3) / (12.0 * (1.0 - m.poisson * m.poisson));
+                Some(crate::model::Bending { model: b.model, stiffness: b.scale * d / 6.0 })
+            }
+            (Some(_), kind) => return Err(self.err(format!("{at}.bending"), format!("only shells bend ({kind:?} layer)"))),
+        };
+        Ok(BuiltLayer { name: l.name.clone(), kind: l.kind, mesh, material, thickness, bending })
+    }
+
+    fn mesh(&self, at: &str, l: &LayerSpec, len: f64, offset: DVec3) -> Result<LayerMesh, SceneError> {
+        let field = format!("{at}.mesh");
+        let positive = |v: f64, what: &str| -> Result<(), SceneError> {
+            if v > 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(self.err(format!("{field}.{what}"), format!("must be > 0 (got {v})")))
+            }
+        };
+        let mut mesh = match &l.mesh {
+            MeshSpec::Grid { size, cells, pattern, z } => {
+                if l.kind == LayerKind::Volume {
+                    return Err(self.err(&field, "a volume layer needs a TetSlab mesh"));
+                }
+                positive(size.0, "size")?;
+                positive(size.1, "size")?;
+                if cells.0 == 0 || cells.1 == 0 {
+                    return Err(self.err(format!("{field}.cells"), "needs at least one cell in each direction"));
+                }
+                LayerMesh::Surface(mesh::grid(DVec2::new(size.0, size.1) * len, *cells, *pattern, z * len))
+            }
+            MeshSpec::TetSlab { size, cells, depth, elements, top } => {
+                if l.kind != LayerKind::Volume {
+                    return Err(self.err(&field, "a TetSlab mesh belongs to a volume layer"));
+                }
+                positive(size.0, "size")?;
+                positive(size.1, "size")?;
+                positive(*depth, "depth")?;
+                if cells.0 == 0 || cells.1 == 0 {
+                    return Err(self.err(format!("{field}.cells"), "needs at least one cell in each direction"));
+                }
+                if *elements == 0 {
+                    return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
+                }
+                let (m, _) = mesh::tet_slab(DVec2::new(size.0, size.1) * len, *cells, top * len, &[(depth * len, *elements)]);
+                LayerMesh::Volume(m)
+            }
+            MeshSpec::Obj { path } => {
+                if l.kind == LayerKind::Volume {
+                    return Err(self.err(&field, "OBJ meshes are surfaces: use them for shell or kinematic layers"));
+                }
+                let full = self.dir.join(path);
+                if !full.is_file() {
+                    return Err(SceneError::at_field(&full, &field, format!("mesh file not found: {}", full.display())));
+                }
+                let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e))?;
+                mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
+                LayerMesh::Surface(m)
+            }
+        };
+        if let LayerMesh::Surface(m) = &mesh {
+            mesh::check_surface(m).map_err(|e| self.err(&field, e.to_string()))?;
+        }
+        match &mut mesh {
+            LayerMesh::Surface(m) => m.rest.iter_mut().for_each(|p| *p += offset),
+            LayerMesh::Volume(m) => m.rest.iter_mut().for_each(|p| *p += offset),
+        }
+        Ok(mesh)
+    }
+
+    /// Pairs every vertex of `a` with the vertex of `b` at the same rest position in the plane
+    /// (x, y), for attachment springs; stiffness per vertex = k_area x vertex area of `a`.
+    fn pair_layers(&self, at: &str, a: &BuiltLayer, b: &BuiltLayer, k_area: f64) -> Result<Vec<(u32, u32, f64)>, SceneError> {
+        let LayerMesh::Surface(ma) = &a.mesh else {
+            return Err(self.err(format!("{at}.layer"), "attachment springs start from a surface layer"));
+        };
+        let rb = b.mesh.rest();
+        let size = bbox_diag(&ma.rest).max(1e-300);
+        let tol = 1e-9 * size;
+        let key = |p: DVec3| ((p.x / tol).round() as i64, (p.y / tol).round() as i64);
+        let mut lookup: HashMap<(i64, i64), u32> = HashMap::new();
+        // Several vertices of b may share (x, y) (a slab): keep the topmost.
+        for (i, p) in rb.iter().enumerate() {
+            let e = lookup.entry(key(*p)).or_insert(i as u32);
+            if rb[*e as usize].z < p.z {
+                *e = i as u32;
+            }
+        }
+        let mut area = vec![0.0; ma.rest.len()];
+        for f in &ma.faces {
+            let p = |i: usize| ma.rest[f[i] as usize];
+            let ar = 0.5 * (p(1) - p(0)).cross(p(2) - p(0)).length();
+            for &v in f {
+                area[v as usize] += ar / 3.0;
+            }
+        }
+        let mut out = Vec::with_capacity(ma.rest.len());
+        for (i, p) in ma.rest.iter().enumerate() {
+            let j = lookup.get(&key(*p)).copied().ok_or_else(|| {
+                self.err(format!("{at}.to"), format!("vertex {i} of \"{}\" has no vertex of \"{}\" at the same (x, y)", a.name, b.name))
+            })?;
+            out.push((i as u32, j, k_area * area[i]));
+        }
+        Ok(out)
+    }
+}
+
+fn bbox(points: &[DVec3]) -> (DVec3, DVec3) {
+    points.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+}
+
+fn bbox_diag(points: &[DVec3]) -> f64 {
+    let (lo, hi) = bbox(points);
+    (hi - lo).length()
+}
+
+fn select_vertices(rest: &[DVec3], select: &Select, len: f64, offset: DVec3) -> Vec<u32> {
+    let (lo, hi) = bbox(rest);
+    let tol = 1e-9 * (hi - lo).length();
+    rest.iter()
+        .enumerate()
+        .filter(|(_, p)| match select {
+            Select::All => true,
+            Select::Sides(sides) => sides.iter().any(|s| match s {
+                Side::XMin => p.x <= lo.x + tol,
+                Side::XMax => p.x >= hi.x - tol,
+                Side::YMin => p.y <= lo.y + tol,
+                Side::YMax => p.y >= hi.y - tol,
+                Side::ZMin => p.z <= lo.z + tol,
+                Side::ZMax => p.z >= hi.z - tol,
+            }),
+            Select::Box { min, max } => {
+                let (a, b) = (DVec3::new(min.0, min.1, min.2) * len + offset, DVec3::new(max.0, max.1, max.2) * len + offset);
+                p.cmpge(a - tol).all() && p.cmple(b + tol).all()
+            }
+        })
+        .map(|(i, _)| i as u32)
+        .collect()
+}

@@ -1,0 +1,13 @@
+//! Scene files: the RON schema (serde), its validation, building meshes, and spawning into a World.
+//!
+//! `load` reads and validates a scene and builds every mesh, so `skinsim check` catches every
+//! input error without running; `spawn` turns a built scene into entities.
+
+pub mod build;
+pub mod error;
+pub mod schema;
+pub mod spawn;
+
+pub use build::{load, load_str, BuiltScene};
+pub use error::SceneError;
+pub use spawn::spawn;

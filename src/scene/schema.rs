@@ -1,0 +1,337 @@
+//! The scene schema. Every struct denies unknown fields so that a typo is an error.
+//! Lengths and stresses are in the scene's `units`; densities in kg/m^3; times in seconds.
+//! See scenes/README.md and the commented scenes for examples of every feature.
+
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::GridPattern;
+use crate::model::LayerKind;
+use crate::physics::{ConstitutiveModel, HingeModel, Projection};
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub name: String,
+    #[serde(default)]
+    pub units: Units,
+    /// Number of frames to compute.
+    pub frames: u32,
+    /// Seconds per frame (the time step of the implicit-Euler mode).
+    #[serde(default = "default_frame_time")]
+    pub frame_time: f64,
+    pub patches: Vec<PatchSpec>,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+fn default_frame_time() -> f64 {
+    1.0 / 30.0
+}
+fn default_true() -> bool {
+    true
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Units {
+    #[serde(default)]
+    pub length: LengthUnit,
+    #[serde(default)]
+    pub stress: StressUnit,
+}
+
+impl Default for Units {
+    fn default() -> Self {
+        Units { length: LengthUnit::Millimetre, stress: StressUnit::MegaPascal }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum LengthUnit {
+    Metre,
+    Centimetre,
+    #[default]
+    Millimetre,
+    Micrometre,
+}
+
+impl LengthUnit {
+    pub fn to_si(self) -> f64 {
+        match self {
+            LengthUnit::Metre => 1.0,
+            LengthUnit::Centimetre => 1e-2,
+            LengthUnit::Millimetre => 1e-3,
+            LengthUnit::Micrometre => 1e-6,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum StressUnit {
+    Pascal,
+    KiloPascal,
+    #[default]
+    MegaPascal,
+    GigaPascal,
+}
+
+impl StressUnit {
+    pub fn to_si(self) -> f64 {
+        match self {
+            StressUnit::Pascal => 1.0,
+            StressUnit::KiloPascal => 1e3,
+            StressUnit::MegaPascal => 1e6,
+            StressUnit::GigaPascal => 1e9,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Patch")]
+pub struct PatchSpec {
+    pub name: String,
+    /// Where the patch sits in the world (length units).
+    #[serde(default)]
+    pub offset: (f64, f64, f64),
+    #[serde(default)]
+    pub solver: SolverSpec,
+    pub layers: Vec<LayerSpec>,
+    #[serde(default)]
+    pub drivers: Vec<DriverSpec>,
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum SolveMode {
+    /// Equilibrium at every frame (LK14 eq. 5.1, H15 chapter 5).
+    #[default]
+    Quasistatic,
+    /// Implicit Euler in optimization form (LK14 eq. 5.2), time step = frame_time.
+    ImplicitEuler,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    #[serde(default)]
+    pub mode: SolveMode,
+    /// Converged when |grad| <= tolerance x (internal force scale).
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    #[serde(default = "default_max_iterations")]
+    pub max_iterations: u32,
+    #[serde(default)]
+    pub projection: Projection,
+    /// A seeded random normal displacement of free shell vertices before the first frame.
+    #[serde(default)]
+    pub perturbation: Option<Perturbation>,
+}
+
+fn default_tolerance() -> f64 {
+    1e-8
+}
+fn default_max_iterations() -> u32 {
+    50
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        SolverSpec {
+            mode: SolveMode::Quasistatic,
+            tolerance: default_tolerance(),
+            max_iterations: default_max_iterations(),
+            projection: Projection::default(),
+            perturbation: None,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Perturbation {
+    /// Largest displacement (length units), uniform in [-amplitude, amplitude].
+    pub amplitude: f64,
+    pub seed: u64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Layer")]
+pub struct LayerSpec {
+    pub name: String,
+    pub kind: LayerKind,
+    pub mesh: MeshSpec,
+    /// Required for shell and volume layers.
+    #[serde(default)]
+    pub material: Option<MaterialSpec>,
+    /// Shell layers only; no hinges without it.
+    #[serde(default)]
+    pub bending: Option<BendingSpec>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum MeshSpec {
+    /// Rectangle [0, size.0] x [0, size.1] at height z, `cells` cells.
+    Grid {
+        size: (f64, f64),
+        cells: (u32, u32),
+        #[serde(default)]
+        pattern: GridPattern,
+        #[serde(default)]
+        z: f64,
+    },
+    /// A tetrahedral slab over the same rectangle, from z = top - depth up to z = top,
+    /// `elements` tetrahedral prisms through the depth (three tets each).
+    TetSlab {
+        size: (f64, f64),
+        cells: (u32, u32),
+        depth: f64,
+        elements: u32,
+        #[serde(default)]
+        top: f64,
+    },
+    /// A triangle surface from an OBJ file (path relative to the scene file), in length units.
+    Obj { path: String },
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    #[serde(default)]
+    pub model: ConstitutiveModel,
+    /// Young's modulus (stress units).
+    pub young: f64,
+    pub poisson: f64,
+    /// kg/m^3.
+    #[serde(default = "default_density")]
+    pub density: f64,
+    /// Shell thickness (length units); shells only.
+    #[serde(default)]
+    pub thickness: Option<f64>,
+}
+
+fn default_density() -> f64 {
+    1000.0
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BendingSpec {
+    #[serde(default)]
+    pub model: HingeModel,
+    /// Multiplies the calibrated hinge stiffness k_b = D / 6 (PHYSICS.md 1.2).
+    #[serde(default = "default_one")]
+    pub scale: f64,
+}
+
+fn default_one() -> f64 {
+    1.0
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum Axis {
+    #[default]
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+pub enum Side {
+    XMin,
+    XMax,
+    YMin,
+    YMax,
+    ZMin,
+    ZMax,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum Select {
+    All,
+    /// Vertices on the given sides of the layer's bounding box.
+    Sides(Vec<Side>),
+    /// Vertices inside a box (length units).
+    Box { min: (f64, f64, f64), max: (f64, f64, f64) },
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct Dofs {
+    #[serde(default = "default_true")]
+    pub x: bool,
+    #[serde(default = "default_true")]
+    pub y: bool,
+    #[serde(default = "default_true")]
+    pub z: bool,
+}
+
+impl Default for Dofs {
+    fn default() -> Self {
+        Dofs { x: true, y: true, z: true }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum DriverSpec {
+    /// Prescribes coordinates of selected vertices (held at their driven position).
+    Pin {
+        layer: String,
+        select: Select,
+        #[serde(default)]
+        dofs: Dofs,
+    },
+    /// Uniform compression of the listed layers along an axis about the patch centre:
+    /// `keyframes` are (frame, strain); strain 0.1 shortens by 10 %. Moves prescribed
+    /// coordinates; with `predict`, free vertices get the same incremental map as a guess.
+    Compress {
+        layers: Vec<String>,
+        #[serde(default)]
+        axis: Axis,
+        keyframes: Vec<(u32, f64)>,
+        #[serde(default = "default_true")]
+        predict: bool,
+    },
+    /// Bends the listed layers into a cylinder about an axis through the patch centre:
+    /// `keyframes` are (frame, curvature in 1 / length unit). Moves prescribed coordinates.
+    Bend {
+        layers: Vec<String>,
+        #[serde(default = "axis_y")]
+        axis: Axis,
+        keyframes: Vec<(u32, f64)>,
+    },
+    /// Zero-length springs from every vertex of `layer` to the vertex of `to` at the same
+    /// material position; `stiffness` per unit area (stress / length units).
+    Attach { layer: String, to: String, stiffness: f64 },
+}
+
+fn axis_y() -> Axis {
+    Axis::Y
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// stats.jsonl
+    #[serde(default = "default_true")]
+    pub stats: bool,
+    /// recording.rrd
+    #[serde(default = "default_true")]
+    pub rerun: bool,
+    /// obj/<patch>/<layer>/<frame>.obj
+    #[serde(default)]
+    pub obj: bool,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec { stats: true, rerun: true, obj: false }
+    }
+}

@@ -1,0 +1,240 @@
+//! Spawning a built scene into a World: one entity per patch, layer, vertex, edge, face, tet
+//! and spring, with their relationships.
+
+use bevy_ecs::prelude::*;
+use glam::{DMat2, DMat3, DVec2, DVec3};
+use rand::{Rng, SeedableRng};
+
+use super::build::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
+use crate::mesh;
+use crate::model::*;
+use crate::physics::hinge::HingeRest;
+use crate::physics::membrane::MembraneRest;
+use crate::physics::tet::TetRest;
+
+/// Spawns every patch of the scene and inserts the clock. Returns the patch entities.
+pub fn spawn(world: &mut World, scene: &BuiltScene) -> Vec<Entity> {
+    world.insert_resource(SimClock { frame: 0, time: 0.0, dt: scene.scene.frame_time });
+    world.init_resource::<Timings>();
+    world.init_resource::<FrameReport>();
+    world.init_resource::<SimFailure>();
+    scene.patches.iter().enumerate().map(|(i, p)| spawn_patch(world, p, i as u32)).collect()
+}
+
+fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
+    let patch = world.spawn((Patch { name: p.name.clone(), index }, SolverSettings(p.solver.clone()))).id();
+    let mut layer_vertices: Vec<Vec<Entity>> = Vec::new();
+    let mut layers = Vec::new();
+    let mut fixed: Vec<Vec<[bool; 3]>> = p
+        .layers
+        .iter()
+        .map(|l| vec![[l.kind == LayerKind::Kinematic; 3]; l.mesh.rest().len()])
+        .collect();
+    for d in &p.drivers {
+        if let BuiltDriver::Pin { layer, vertices, dofs } = d {
+            for &v in vertices {
+                let f = &mut fixed[*layer][v as usize];
+                for k in 0..3 {
+                    f[k] |= dofs[k];
+                }
+            }
+        }
+    }
+    let mut all_rest = Vec::new();
+    for (li, l) in p.layers.iter().enumerate() {
+        let (layer, verts) = spawn_layer(world, patch, l, li as u32, &fixed[li]);
+        all_rest.extend_from_slice(l.mesh.rest());
+        layers.push(layer);
+        layer_vertices.push(verts);
+    }
+    if let Some(pert) = p.solver.perturbation {
+        perturb(world, p, &layer_vertices, &fixed, pert.amplitude, pert.seed);
+    }
+    let mut motion = PatchMotion::default();
+    let (lo, hi) = all_rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), q| (a.min(*q), b.max(*q)));
+    motion.centre = 0.5 * (lo + hi);
+    for d in &p.drivers {
+        match d {
+            BuiltDriver::Compress { layers: ls, axis, keyframes, predict } => motion.motions.push(Motion {
+                layers: ls.iter().map(|&i| layers[i]).collect(),
+                kind: MotionKind::Compress { axis: *axis, predict: *predict },
+                keyframes: Keyframes(keyframes.clone()),
+            }),
+            BuiltDriver::Bend { layers: ls, axis, keyframes } => motion.motions.push(Motion {
+                layers: ls.iter().map(|&i| layers[i]).collect(),
+                kind: MotionKind::Bend { axis: *axis },
+                keyframes: Keyframes(keyframes.clone()),
+            }),
+            BuiltDriver::Attach { layer, to, springs } => {
+                let batch: Vec<_> = springs
+                    .iter()
+                    .map(|&(a, b, k)| {
+                        (Spring { a: layer_vertices[*layer][a as usize], b: layer_vertices[*to][b as usize], stiffness: k }, SpringOf(layers[*layer]))
+                    })
+                    .collect();
+                world.spawn_batch(batch);
+            }
+            BuiltDriver::Pin { .. } => {}
+        }
+    }
+    if !motion.motions.is_empty() {
+        world.entity_mut(patch).insert(motion);
+    }
+    world.entity_mut(patch).insert(crate::solve::SolverBody { topology_key: u64::MAX, ..Default::default() });
+    patch
+}
+
+fn spawn_layer(world: &mut World, patch: Entity, l: &BuiltLayer, index: u32, fixed: &[[bool; 3]]) -> (Entity, Vec<Entity>) {
+    let mut e = world.spawn((Layer { name: l.name.clone(), kind: l.kind, index }, LayerOf(patch), TopologyEpoch(0)));
+    if let Some(m) = l.material {
+        e.insert(m);
+    }
+    if let Some(h) = l.thickness {
+        e.insert(Thickness(h));
+    }
+    if let Some(b) = l.bending {
+        e.insert(b);
+    }
+    let layer = e.id();
+    let rest = l.mesh.rest();
+    let mass = lumped_mass(l);
+    let uv: Vec<DVec2> = match &l.mesh {
+        LayerMesh::Surface(m) => m.uv.clone(),
+        LayerMesh::Volume(m) => m.rest.iter().map(|p| p.truncate()).collect(),
+    };
+    let verts: Vec<Entity> = world
+        .spawn_batch((0..rest.len()).map(|i| {
+            (
+                VertexOf(layer),
+                MaterialPos(uv[i]),
+                RestPos(rest[i]),
+                Position(rest[i]),
+                Velocity::default(),
+                Mass(mass[i]),
+                Prescribed(fixed[i]),
+            )
+        }))
+        .collect();
+    match &l.mesh {
+        LayerMesh::Surface(m) => {
+            let shell = l.kind == LayerKind::Shell;
+            let h = l.thickness.unwrap_or(0.0);
+            let faces: Vec<_> = m
+                .faces
+                .iter()
+                .map(|f| {
+                    let vs = f.map(|i| verts[i as usize]);
+                    let rest = shell.then(|| {
+                        let tri = f.map(|i| m.rest[i as usize]);
+                        FaceRest(MembraneRest::from_rest_triangle(tri, h, DMat2::IDENTITY).expect("checked mesh"))
+                    });
+                    (FaceVerts(vs), FaceOf(layer), rest)
+                })
+                .collect();
+            for (fv, of, rest) in faces {
+                let mut e = world.spawn((fv, of));
+                if let Some(r) = rest {
+                    e.insert(r);
+                }
+            }
+            if shell {
+                let bending = l.bending;
+                let batch: Vec<_> = mesh::edges(&m.faces)
+                    .into_iter()
+                    .map(|e| {
+                        let hinge = match (bending, e.is_interior()) {
+                            (Some(b), true) => {
+                                let q = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]];
+                                Some(Hinge {
+                                    opposite: [verts[q[2] as usize], verts[q[3] as usize]],
+                                    rest: HingeRest::from_rest(b.model, b.stiffness, q.map(|i| m.rest[i as usize])),
+                                })
+                            }
+                            _ => None,
+                        };
+                        (EdgeVerts([verts[e.v[0] as usize], verts[e.v[1] as usize]]), EdgeOf(layer), hinge)
+                    })
+                    .collect();
+                for (ev, of, hinge) in batch {
+                    let mut e = world.spawn((ev, of));
+                    if let Some(h) = hinge {
+                        e.insert(h);
+                    }
+                }
+            }
+        }
+        LayerMesh::Volume(m) => {
+            let batch: Vec<_> = m
+                .tets
+                .iter()
+                .map(|t| {
+                    let rest = TetRest::from_rest(t.map(|i| m.rest[i as usize]), DMat3::IDENTITY).expect("generated tets are valid");
+                    (TetVerts(t.map(|i| verts[i as usize])), TetOf(layer), TetRestShape(rest))
+                })
+                .collect();
+            world.spawn_batch(batch);
+        }
+    }
+    (layer, verts)
+}
+
+/// Lumped masses: density x thickness x area / 3 per shell vertex, density x volume / 4 per
+/// tet vertex; kinematic vertices carry none.
+fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
+    let n = l.mesh.rest().len();
+    let mut mass = vec![0.0; n];
+    let Some(mat) = l.material else { return mass };
+    match &l.mesh {
+        LayerMesh::Surface(m) => {
+            let h = l.thickness.unwrap_or(0.0);
+            for f in &m.faces {
+                let p = |i: usize| m.rest[f[i] as usize];
+                let a = 0.5 * (p(1) - p(0)).cross(p(2) - p(0)).length();
+                for &v in f {
+                    mass[v as usize] += mat.density * h * a / 3.0;
+                }
+            }
+        }
+        LayerMesh::Volume(m) => {
+            for t in &m.tets {
+                let p = |i: usize| m.rest[t[i] as usize];
+                let vol = (p(1) - p(0)).cross(p(2) - p(0)).dot(p(3) - p(0)) / 6.0;
+                for &v in t {
+                    mass[v as usize] += mat.density * vol / 4.0;
+                }
+            }
+        }
+    }
+    mass
+}
+
+/// Seeded displacement of free shell vertices along their rest normal, uniform in [-a, a].
+fn perturb(world: &mut World, p: &BuiltPatch, verts: &[Vec<Entity>], fixed: &[Vec<[bool; 3]>], amplitude: f64, seed: u64) {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    for (li, l) in p.layers.iter().enumerate() {
+        let LayerMesh::Surface(m) = &l.mesh else { continue };
+        if l.kind != LayerKind::Shell {
+            continue;
+        }
+        let mut normal = vec![DVec3::ZERO; m.rest.len()];
+        for f in &m.faces {
+            let q = |i: usize| m.rest[f[i] as usize];
+            let n = (q(1) - q(0)).cross(q(2) - q(0));
+            for &v in f {
+                normal[v as usize] += n;
+            }
+        }
+        for (i, e) in verts[li].iter().enumerate() {
+            let u: f64 = rng.random_range(-1.0..=1.0);
+            let mut d = normal[i].normalize_or_zero() * (u * amplitude);
+            for k in 0..3 {
+                if fixed[li][i][k] {
+                    d[k] = 0.0;
+                }
+            }
+            if let Some(mut pos) = world.get_mut::<Position>(*e) {
+                pos.0 += d;
+            }
+        }
+    }
+}

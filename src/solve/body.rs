@@ -1,0 +1,80 @@
+//! The packed solver body of one patch: positions, masses, fixed coordinates and element
+//! lists indexed by packed vertex number. Rebuilt by Assemble when the topology changes.
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+use crate::model::PatchReport;
+use crate::physics::hinge::HingeRest;
+use crate::physics::membrane::MembraneRest;
+use crate::physics::tet::TetRest;
+use crate::physics::{ConstitutiveModel, HingeModel, Lame};
+
+use super::linear::CholeskySolver;
+use super::pattern::Pattern;
+
+#[derive(Clone, Copy, Debug)]
+pub struct MembraneElem {
+    pub v: [u32; 3],
+    pub rest: MembraneRest,
+    pub model: ConstitutiveModel,
+    pub lame: Lame,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct HingeElem {
+    pub v: [u32; 4],
+    pub rest: HingeRest,
+    pub model: HingeModel,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct TetElem {
+    pub v: [u32; 4],
+    pub rest: TetRest,
+    pub model: ConstitutiveModel,
+    pub lame: Lame,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct SpringElem {
+    pub v: [u32; 2],
+    pub k: f64,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Elements {
+    pub membranes: Vec<MembraneElem>,
+    pub hinges: Vec<HingeElem>,
+    pub tets: Vec<TetElem>,
+    pub springs: Vec<SpringElem>,
+}
+
+/// One patch's packed problem (a component on the patch entity).
+#[derive(Component, Default)]
+pub struct SolverBody {
+    /// The topology key this body was built for (sum of the layers' epochs and counts).
+    pub topology_key: u64,
+    /// Packed vertex index -> entity.
+    pub vertices: Vec<Entity>,
+    pub x: Vec<DVec3>,
+    pub v: Vec<DVec3>,
+    pub mass: Vec<f64>,
+    pub fixed: Vec<[bool; 3]>,
+    pub elements: Elements,
+    /// Faces and tets counted for reports.
+    pub face_count: usize,
+    pub tet_count: usize,
+    /// Characteristic length (bounding-box diagonal of the rest shape), m.
+    pub length_scale: f64,
+    /// Sparse pattern and factorization: None until first needed, dropped on topology change.
+    pub system: Option<(Pattern, CholeskySolver)>,
+    pub report: PatchReport,
+}
+
+impl SolverBody {
+    /// Drops the cached pattern (call after any change of connectivity or fixed coordinates).
+    pub fn invalidate_pattern(&mut self) {
+        self.system = None;
+    }
+}

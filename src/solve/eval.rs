@@ -1,0 +1,161 @@
+//! Evaluating a body's elements: energies (line search), and energy + gradient + Hessian
+//! assembled into the cached pattern. Elements run in parallel in fixed chunks; the scatter
+//! and every sum run in element order, so results do not depend on the thread count.
+
+use glam::DVec3;
+use nalgebra::{SMatrix, SVector};
+use rayon::prelude::*;
+
+use super::body::Elements;
+use super::pattern::{pairs, Pattern, NONE};
+use crate::physics::psd::Filter;
+use crate::physics::{hinge, membrane, spring, tet};
+
+/// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
+const CHUNK: usize = 1024;
+
+/// Energy by element kind: membrane, bending, volume, springs (J).
+pub type EnergyParts = [f64; 4];
+
+#[inline]
+fn gather<const NV: usize>(x: &[DVec3], v: &[u32; NV]) -> [DVec3; NV] {
+    std::array::from_fn(|i| x[v[i] as usize])
+}
+
+fn sum_chunks<E: Sync>(elems: &[E], f: impl Fn(&E) -> f64 + Sync) -> f64 {
+    let partial: Vec<f64> = elems.par_chunks(CHUNK).map(|c| c.iter().map(&f).sum::<f64>()).collect();
+    partial.iter().sum()
+}
+
+/// Energies only, by element kind.
+pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
+    [
+        sum_chunks(&elements.membranes, |e| membrane::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
+        sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &gather(x, &e.v))),
+        sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
+        sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize])),
+    ]
+}
+
+/// The result of one assembly.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Assembly {
+    pub parts: EnergyParts,
+    /// Sum of element force magnitudes: the scale the residual is measured against.
+    pub force_scale: f64,
+}
+
+/// Assembles energy, the gradient over free DOFs (`grad`, length pattern.n) and the lower
+/// triangle of the Hessian (`values`, length pattern.nnz()). Both buffers are overwritten.
+pub fn assemble(
+    el: &Elements,
+    pattern: &Pattern,
+    x: &[DVec3],
+    filter: Filter,
+    grad: &mut [f64],
+    values: &mut [f64],
+) -> Assembly {
+    grad.iter_mut().for_each(|g| *g = 0.0);
+    values.iter_mut().for_each(|v| *v = 0.0);
+    let mut out = Assembly::default();
+    let mut acc = Scatter { dof: &pattern.dof, grad, values, force: 0.0 };
+    out.parts[0] = acc.class::<_, 3, 9>(&el.membranes, &pattern.membranes, |e| e.v, |e| {
+        membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter)
+    });
+    out.parts[1] = acc.class::<_, 4, 12>(&el.hinges, &pattern.hinges, |e| e.v, |e| {
+        hinge::eval(e.model, &e.rest, &gather(x, &e.v), filter)
+    });
+    out.parts[2] = acc.class::<_, 4, 12>(&el.tets, &pattern.tets, |e| e.v, |e| {
+        tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter)
+    });
+    out.parts[3] = acc.class::<_, 2, 6>(&el.springs, &pattern.springs, |e| e.v, |e| {
+        let (a, b) = (x[e.v[0] as usize], x[e.v[1] as usize]);
+        let g = spring::gradient(e.k, a, b);
+        let gv = SVector::<f64, 6>::from_column_slice(&[g.x, g.y, g.z, -g.x, -g.y, -g.z]);
+        let mut h = SMatrix::<f64, 6, 6>::zeros();
+        for k in 0..3 {
+            h[(k, k)] = e.k;
+            h[(k + 3, k + 3)] = e.k;
+            h[(k, k + 3)] = -e.k;
+            h[(k + 3, k)] = -e.k;
+        }
+        (spring::energy(e.k, a, b), gv, h)
+    });
+    out.force_scale = acc.force;
+    out
+}
+
+struct Scatter<'a> {
+    dof: &'a [u32],
+    grad: &'a mut [f64],
+    values: &'a mut [f64],
+    force: f64,
+}
+
+type Local<const N: usize> = (f64, SVector<f64, N>, SMatrix<f64, N, N>);
+
+impl Scatter<'_> {
+    /// Evaluates one element class chunk by chunk; the next chunk is evaluated in parallel
+    /// while the previous one is scattered.
+    fn class<E: Sync, const NV: usize, const N: usize>(
+        &mut self,
+        elems: &[E],
+        map: &[u32],
+        verts: impl Fn(&E) -> [u32; NV] + Sync,
+        eval: impl Fn(&E) -> Local<N> + Sync + Send,
+    ) -> f64 {
+        let np = pairs(NV);
+        debug_assert_eq!(map.len(), elems.len() * np);
+        let mut energy = 0.0;
+        let mut pending: Option<(usize, Vec<Local<N>>)> = None;
+        for (ci, chunk) in elems.chunks(CHUNK).enumerate() {
+            let (cur, ()) = rayon::join(
+                || chunk.par_iter().map(&eval).collect::<Vec<_>>(),
+                || {
+                    if let Some((start, res)) = pending.take() {
+                        energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &res);
+                    }
+                },
+            );
+            pending = Some((ci * CHUNK, cur));
+        }
+        if let Some((start, res)) = pending.take() {
+            energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &res);
+        }
+        energy
+    }
+
+    fn scatter<E, const NV: usize, const N: usize>(
+        &mut self,
+        elems: &[E],
+        map: &[u32],
+        verts: &impl Fn(&E) -> [u32; NV],
+        res: &[Local<N>],
+    ) -> f64 {
+        let np = pairs(NV);
+        let mut energy = 0.0;
+        for (i, (e, g, h)) in res.iter().enumerate() {
+            energy += e;
+            self.force += g.norm();
+            let vs = verts(&elems[i]);
+            for p in 0..N {
+                let d = self.dof[3 * vs[p / 3] as usize + p % 3];
+                if d != NONE {
+                    self.grad[d as usize] += g[p];
+                }
+            }
+            let m = &map[i * np..(i + 1) * np];
+            let mut k = 0;
+            for p in 0..N {
+                for q in 0..=p {
+                    let pos = m[k];
+                    if pos != NONE {
+                        self.values[pos as usize] += h[(p, q)];
+                    }
+                    k += 1;
+                }
+            }
+        }
+        energy
+    }
+}

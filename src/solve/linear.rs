@@ -1,0 +1,78 @@
+//! Sparse Cholesky with faer: the symbolic factorization is computed once per pattern and
+//! reused for every numeric factorization; buffers are allocated once.
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+
+use super::pattern::Pattern;
+
+/// Below this many DOFs the factorization runs sequentially (faster on small matrices).
+pub const PARALLEL_MIN_DOFS: usize = 20_000;
+
+pub struct CholeskySolver {
+    symbolic: SymbolicCholesky<u32>,
+    l_values: Vec<f64>,
+    mem: MemBuffer,
+    par: Par,
+    factored: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NotPositiveDefinite;
+
+impl CholeskySolver {
+    /// Symbolic analysis (AMD ordering) of the pattern.
+    pub fn analyze(p: &Pattern) -> Self {
+        let par = if p.n >= PARALLEL_MIN_DOFS { Par::rayon(rayon::current_num_threads()) } else { Par::Seq };
+        let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
+        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
+            .expect("symbolic Cholesky of a valid pattern");
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, par),
+        ]);
+        let l_values = vec![0.0; symbolic.len_val()];
+        CholeskySolver { symbolic, l_values, mem: MemBuffer::new(req), par, factored: false }
+    }
+
+    /// Numeric factorization of the pattern's matrix with `values`.
+    pub fn factorize(&mut self, p: &Pattern, values: &[f64]) -> Result<(), NotPositiveDefinite> {
+        let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
+        let a = SparseColMatRef::new(sym, values);
+        let stack = MemStack::new(&mut self.mem);
+        let res = self.symbolic.factorize_numeric_llt(
+            &mut self.l_values,
+            a,
+            Side::Lower,
+            LltRegularization::default(),
+            self.par,
+            stack,
+            Default::default(),
+        );
+        self.factored = res.is_ok() && self.l_values.iter().all(|v| v.is_finite());
+        if self.factored {
+            Ok(())
+        } else {
+            Err(NotPositiveDefinite)
+        }
+    }
+
+    /// Solves A x = rhs in place with the last factorization.
+    pub fn solve(&mut self, rhs: &mut [f64]) {
+        assert!(self.factored, "solve after a successful factorization");
+        let n = rhs.len();
+        let llt = LltRef::new(&self.symbolic, &self.l_values);
+        let stack = MemStack::new(&mut self.mem);
+        let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        llt.solve_in_place_with_conj(Conj::No, mat, self.par, stack);
+    }
+
+    pub fn factor_nnz(&self) -> usize {
+        self.l_values.len()
+    }
+}

@@ -1,0 +1,11 @@
+//! The per-patch solver: a packed body copied out of the ECS, a sparse pattern with cached
+//! scatter maps and symbolic factorization, and Newton with Armijo backtracking.
+
+pub mod body;
+pub mod eval;
+pub mod linear;
+pub mod newton;
+pub mod pattern;
+
+pub use body::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
+pub use newton::{solve_frame, FrameOutcome};

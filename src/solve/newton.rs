@@ -1,0 +1,216 @@
+//! Newton's method on one patch (PHYSICS.md 2; H15 5.2): projected Hessians, sparse Cholesky,
+//! Armijo backtracking (H15 eq. 5.27), quasistatic or implicit Euler (LK14 eq. 5.1 / 5.2).
+
+use glam::DVec3;
+
+use super::body::SolverBody;
+use super::eval::{assemble, energy, Assembly};
+use super::linear::CholeskySolver;
+use super::pattern::{Pattern, NONE};
+use crate::physics::psd::Filter;
+use crate::physics::Projection;
+use crate::scene::schema::{SolveMode, SolverSpec};
+
+/// Armijo sufficient-decrease constant.
+const ARMIJO: f64 = 1e-4;
+const MAX_HALVINGS: u32 = 40;
+/// Adaptive projection: below this relative residual the exact Hessian is tried.
+const ADAPTIVE_SWITCH: f64 = 1e-3;
+
+/// What happened in one frame's solve.
+#[derive(Clone, Debug, Default)]
+pub struct FrameOutcome {
+    pub iterations: u32,
+    pub converged: bool,
+    pub residual: f64,
+    pub energy: f64,
+    pub parts: [f64; 4],
+    pub regularized: u32,
+    pub line_search_failures: u32,
+}
+
+/// The incremental potential's inertia term: sum m / (2 h^2) |x - x_hat|^2 (LK14 eq. 5.2).
+struct Inertia<'a> {
+    x_hat: &'a [DVec3],
+    mass: &'a [f64],
+    inv_h2: f64,
+}
+
+impl Inertia<'_> {
+    fn energy(&self, x: &[DVec3]) -> f64 {
+        x.iter().zip(self.x_hat).zip(self.mass).map(|((a, b), m)| 0.5 * m * self.inv_h2 * (*a - *b).length_squared()).sum()
+    }
+}
+
+/// Solves one frame in place on `body.x` (prescribed coordinates already at their targets).
+/// Returns Err with a reason when the state becomes non-finite.
+pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Result<FrameOutcome, String> {
+    let (pattern, mut chol) = match body.system.take() {
+        Some(system) => system,
+        None => {
+            let p = Pattern::build(&body.fixed, &body.elements);
+            let s = CholeskySolver::analyze(&p);
+            (p, s)
+        }
+    };
+    let result = newton(body, &pattern, &mut chol, settings, dt);
+    body.system = Some((pattern, chol));
+    result
+}
+
+fn newton(
+    body: &mut SolverBody,
+    pattern: &Pattern,
+    chol: &mut CholeskySolver,
+    settings: &SolverSpec,
+    dt: f64,
+) -> Result<FrameOutcome, String> {
+    let n = pattern.n;
+    let dynamic = settings.mode == SolveMode::ImplicitEuler;
+    let x_n = body.x.clone();
+    let x_hat: Vec<DVec3> = if dynamic {
+        x_n.iter().zip(&body.v).zip(&body.fixed).map(|((x, v), f)| {
+            let mut p = *x + *v * dt;
+            for k in 0..3 {
+                if f[k] {
+                    p[k] = x[k];
+                }
+            }
+            p
+        }).collect()
+    } else {
+        Vec::new()
+    };
+    if dynamic {
+        body.x.copy_from_slice(&x_hat);
+    }
+    let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &body.mass, inv_h2: 1.0 / (dt * dt) });
+    let total = |parts: &[f64; 4], x: &[DVec3]| parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
+
+    let mut grad = vec![0.0; n];
+    let mut values = vec![0.0; pattern.nnz()];
+    let mut dx = vec![0.0; n];
+    let mut out = FrameOutcome::default();
+    let mut residual = f64::INFINITY;
+    let mut force_exact = false;
+
+    loop {
+        let filter = match settings.projection {
+            Projection::None => Filter::Exact,
+            Projection::Clamp => Filter::Clamp,
+            Projection::Abs => Filter::Abs,
+            Projection::Adaptive if residual < ADAPTIVE_SWITCH && !force_exact => Filter::Exact,
+            Projection::Adaptive => Filter::Clamp,
+        };
+        force_exact = false;
+        let Assembly { parts, mut force_scale } = assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
+        if let Some(inr) = &inertia {
+            for (v, ((x, xh), m)) in body.x.iter().zip(inr.x_hat).zip(inr.mass).enumerate() {
+                let f = (*x - *xh) * (m * inr.inv_h2);
+                force_scale += f.length();
+                for k in 0..3 {
+                    let d = pattern.dof[3 * v + k];
+                    if d != NONE {
+                        grad[d as usize] += f[k];
+                        values[pattern.diag[d as usize] as usize] += m * inr.inv_h2;
+                    }
+                }
+            }
+        }
+        let phi = total(&parts, &body.x);
+        let gnorm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
+        if !phi.is_finite() || !gnorm.is_finite() {
+            return Err(format!("non-finite {} after {} Newton iterations", if phi.is_finite() { "gradient" } else { "energy" }, out.iterations));
+        }
+        residual = if force_scale > 0.0 { gnorm / force_scale } else { 0.0 };
+        out.energy = phi;
+        out.parts = parts;
+        out.residual = residual;
+        if n == 0 || residual <= settings.tolerance {
+            out.converged = true;
+            break;
+        }
+        if out.iterations >= settings.max_iterations {
+            break;
+        }
+        // Search direction: H dx = -g, shifting the diagonal if H is not positive definite.
+        if chol.factorize(pattern, &values).is_err() {
+            if filter == Filter::Exact && settings.projection == Projection::Adaptive {
+                residual = f64::INFINITY; // H15: fall back to the projected Hessian
+                continue;
+            }
+            let mean_diag = pattern.diag.iter().map(|&d| values[d as usize].abs()).sum::<f64>() / n as f64;
+            let mut shift = 1e-8 * mean_diag.max(f64::MIN_POSITIVE);
+            let mut ok = false;
+            for _ in 0..8 {
+                for &d in &pattern.diag {
+                    values[d as usize] += shift;
+                }
+                if chol.factorize(pattern, &values).is_ok() {
+                    ok = true;
+                    break;
+                }
+                shift *= 100.0;
+            }
+            out.regularized += 1;
+            if !ok {
+                return Err("the Hessian could not be factorized even with a diagonal shift".into());
+            }
+        }
+        for (d, g) in dx.iter_mut().zip(&grad) {
+            *d = -g;
+        }
+        chol.solve(&mut dx);
+        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+        if !(slope < 0.0) {
+            if filter == Filter::Exact && settings.projection == Projection::Adaptive {
+                residual = f64::INFINITY;
+                continue;
+            }
+            // Not a descent direction (round-off at convergence): fall back to steepest descent.
+            let scale = 1.0 / gnorm.max(f64::MIN_POSITIVE) * 1e-6 * body.length_scale;
+            for (d, g) in dx.iter_mut().zip(&grad) {
+                *d = -g * scale;
+            }
+        }
+        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+        // Armijo backtracking on the total potential.
+        let x0 = body.x.clone();
+        let mut alpha = 1.0;
+        let mut accepted = false;
+        for _ in 0..MAX_HALVINGS {
+            step(&mut body.x, &x0, &pattern.dof, &dx, alpha);
+            let trial = total(&energy(&body.elements, &body.x), &body.x);
+            if trial.is_finite() && trial <= phi + ARMIJO * alpha * slope {
+                accepted = true;
+                break;
+            }
+            alpha *= 0.5;
+        }
+        out.iterations += 1;
+        if !accepted {
+            out.line_search_failures += 1;
+            body.x.copy_from_slice(&x0);
+            // At round-off level no decrease is measurable: accept a near-converged state.
+            if residual <= settings.tolerance * 1e3 {
+                out.converged = true;
+            }
+            break;
+        }
+    }
+    if dynamic {
+        for ((v, x), x0) in body.v.iter_mut().zip(&body.x).zip(&x_n) {
+            *v = (*x - *x0) / dt;
+        }
+    }
+    Ok(out)
+}
+
+fn step(x: &mut [DVec3], x0: &[DVec3], dof: &[u32], dx: &[f64], alpha: f64) {
+    for (v, (p, p0)) in x.iter_mut().zip(x0).enumerate() {
+        for k in 0..3 {
+            let d = dof[3 * v + k];
+            p[k] = if d == NONE { p0[k] } else { p0[k] + alpha * dx[d as usize] };
+        }
+    }
+}

@@ -1,0 +1,129 @@
+//! DOF numbering, the lower-triangular CSC pattern over free DOFs, and per-element scatter maps
+//! (computed once per topology so assembly is a plain indexed add).
+
+use super::body::Elements;
+
+pub const NONE: u32 = u32::MAX;
+
+#[derive(Clone, Debug)]
+pub struct Pattern {
+    /// Free DOF index of coordinate k of vertex v at [3 v + k], or NONE when fixed.
+    pub dof: Vec<u32>,
+    pub n: usize,
+    pub col_ptr: Vec<u32>,
+    pub row_idx: Vec<u32>,
+    /// Position of each column's diagonal entry in `row_idx`.
+    pub diag: Vec<u32>,
+    /// Scatter maps: for element e with N local DOFs, N(N+1)/2 value positions (lower
+    /// triangle of the local matrix, row-major: p >= q), NONE where a DOF is fixed.
+    pub membranes: Vec<u32>,
+    pub hinges: Vec<u32>,
+    pub tets: Vec<u32>,
+    pub springs: Vec<u32>,
+}
+
+/// Number of stored local pairs of an element with `nv` vertices.
+pub const fn pairs(nv: usize) -> usize {
+    let n = 3 * nv;
+    n * (n + 1) / 2
+}
+
+impl Pattern {
+    pub fn build(fixed: &[[bool; 3]], elements: &Elements) -> Pattern {
+        let nv = fixed.len();
+        let mut dof = vec![NONE; 3 * nv];
+        let mut n = 0u32;
+        for (v, f) in fixed.iter().enumerate() {
+            for k in 0..3 {
+                if !f[k] {
+                    dof[3 * v + k] = n;
+                    n += 1;
+                }
+            }
+        }
+        // Vertex adjacency (upper: neighbours u >= v), sorted and unique.
+        let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nv];
+        let mut link = |vs: &[u32]| {
+            for &a in vs {
+                for &b in vs {
+                    if b >= a {
+                        adj[a as usize].push(b);
+                    }
+                }
+            }
+        };
+        elements.membranes.iter().for_each(|e| link(&e.v));
+        elements.hinges.iter().for_each(|e| link(&e.v));
+        elements.tets.iter().for_each(|e| link(&e.v));
+        elements.springs.iter().for_each(|e| link(&e.v));
+        for (v, a) in adj.iter_mut().enumerate() {
+            a.push(v as u32); // every free DOF has a diagonal entry
+            a.sort_unstable();
+            a.dedup();
+        }
+        let mut col_ptr = Vec::with_capacity(n as usize + 1);
+        let mut row_idx = Vec::new();
+        let mut diag = Vec::with_capacity(n as usize);
+        col_ptr.push(0u32);
+        for v in 0..nv {
+            for k in 0..3 {
+                let c = dof[3 * v + k];
+                if c == NONE {
+                    continue;
+                }
+                for &u in &adj[v] {
+                    for m in 0..3 {
+                        let r = dof[3 * u as usize + m];
+                        if r != NONE && r >= c {
+                            if r == c {
+                                diag.push(row_idx.len() as u32);
+                            }
+                            row_idx.push(r);
+                        }
+                    }
+                }
+                col_ptr.push(row_idx.len() as u32);
+            }
+        }
+        let mut p = Pattern {
+            dof,
+            n: n as usize,
+            col_ptr,
+            row_idx,
+            diag,
+            membranes: Vec::new(),
+            hinges: Vec::new(),
+            tets: Vec::new(),
+            springs: Vec::new(),
+        };
+        p.membranes = elements.membranes.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.hinges = elements.hinges.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.tets = elements.tets.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.springs = elements.springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p
+    }
+
+    fn position(&self, a: u32, b: u32) -> u32 {
+        let (r, c) = if a >= b { (a, b) } else { (b, a) };
+        let (s, e) = (self.col_ptr[c as usize] as usize, self.col_ptr[c as usize + 1] as usize);
+        let k = self.row_idx[s..e].binary_search(&r).expect("pattern holds every element pair");
+        (s + k) as u32
+    }
+
+    fn element_map(&self, verts: &[u32]) -> Vec<u32> {
+        let n = 3 * verts.len();
+        let mut out = Vec::with_capacity(n * (n + 1) / 2);
+        for p in 0..n {
+            let dp = self.dof[3 * verts[p / 3] as usize + p % 3];
+            for q in 0..=p {
+                let dq = self.dof[3 * verts[q / 3] as usize + q % 3];
+                out.push(if dp == NONE || dq == NONE { NONE } else { self.position(dp, dq) });
+            }
+        }
+        out
+    }
+
+    pub fn nnz(&self) -> usize {
+        self.row_idx.len()
+    }
+}

@@ -1,0 +1,157 @@
+//! Assemble: copies each patch out of the ECS into its packed `SolverBody`. Element lists are
+//! rebuilt only when a layer's topology epoch (or element count) changes; positions,
+//! velocities and fixed coordinates are gathered every frame.
+
+use std::collections::HashMap;
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+use skinsim::model::*;
+use skinsim::solve::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
+
+type LayerItems<'a> = (
+    &'a Layer,
+    &'a TopologyEpoch,
+    Option<&'a Material>,
+    Option<&'a Bending>,
+    Option<&'a LayerVertices>,
+    Option<&'a LayerFaces>,
+    Option<&'a LayerEdges>,
+    Option<&'a LayerTets>,
+    Option<&'a LayerSprings>,
+);
+
+#[allow(clippy::too_many_arguments)]
+pub fn gather_bodies(
+    mut patches: Query<(&PatchLayers, &mut SolverBody)>,
+    layers: Query<LayerItems>,
+    vertices: Query<(&Position, &Velocity, &Mass, &Prescribed)>,
+    faces: Query<(&FaceVerts, Option<&FaceRest>)>,
+    hinges: Query<(&EdgeVerts, &Hinge)>,
+    tets: Query<(&TetVerts, &TetRestShape)>,
+    springs: Query<&Spring>,
+) {
+    for (patch_layers, mut body) in &mut patches {
+        let key = topology_key(patch_layers, &layers);
+        if key != body.topology_key {
+            rebuild(&mut body, patch_layers, &layers, &vertices, &faces, &hinges, &tets, &springs);
+            body.topology_key = key;
+        }
+        let body = body.as_mut();
+        let mut fixed_changed = false;
+        for (i, &e) in body.vertices.iter().enumerate() {
+            let (p, v, _, f) = vertices.get(e).expect("vertex of a live layer");
+            body.x[i] = p.0;
+            body.v[i] = v.0;
+            if body.fixed[i] != f.0 {
+                body.fixed[i] = f.0;
+                fixed_changed = true;
+            }
+        }
+        if fixed_changed {
+            body.invalidate_pattern();
+        }
+    }
+}
+
+fn topology_key(patch_layers: &PatchLayers, layers: &Query<LayerItems>) -> u64 {
+    // A cheap fingerprint: epochs and element counts of every layer, in order.
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut mix = |v: u64| {
+        h ^= v;
+        h = h.wrapping_mul(0x100_0000_01b3);
+    };
+    for &l in patch_layers.entities() {
+        if let Ok((_, epoch, _, _, v, f, e, t, s)) = layers.get(l) {
+            mix(l.to_bits());
+            mix(epoch.0);
+            mix(v.map_or(0, |x| x.entities().len()) as u64);
+            mix(f.map_or(0, |x| x.entities().len()) as u64);
+            mix(e.map_or(0, |x| x.entities().len()) as u64);
+            mix(t.map_or(0, |x| x.entities().len()) as u64);
+            mix(s.map_or(0, |x| x.entities().len()) as u64);
+        }
+    }
+    h
+}
+
+#[allow(clippy::too_many_arguments)]
+fn rebuild(
+    body: &mut SolverBody,
+    patch_layers: &PatchLayers,
+    layers: &Query<LayerItems>,
+    vertices: &Query<(&Position, &Velocity, &Mass, &Prescribed)>,
+    faces: &Query<(&FaceVerts, Option<&FaceRest>)>,
+    hinges: &Query<(&EdgeVerts, &Hinge)>,
+    tets: &Query<(&TetVerts, &TetRestShape)>,
+    springs: &Query<&Spring>,
+) {
+    let mut index: HashMap<Entity, u32> = HashMap::new();
+    body.vertices.clear();
+    for &l in patch_layers.entities() {
+        let Ok((.., Some(verts), _, _, _, _)) = layers.get(l) else { continue };
+        for &v in verts.entities() {
+            index.entry(v).or_insert_with(|| {
+                body.vertices.push(v);
+                (body.vertices.len() - 1) as u32
+            });
+        }
+    }
+    let n = body.vertices.len();
+    body.x = vec![DVec3::ZERO; n];
+    body.v = vec![DVec3::ZERO; n];
+    body.mass = vec![0.0; n];
+    body.fixed = vec![[false; 3]; n];
+    for (i, &e) in body.vertices.iter().enumerate() {
+        let (p, v, m, f) = vertices.get(e).expect("vertex");
+        body.x[i] = p.0;
+        body.v[i] = v.0;
+        body.mass[i] = m.0;
+        body.fixed[i] = f.0;
+    }
+    let idx = |e: &Entity| index[e];
+    let mut el = Elements::default();
+    let (mut face_count, mut tet_count) = (0, 0);
+    for &l in patch_layers.entities() {
+        let Ok((layer, _, material, bending, _, lfaces, ledges, ltets, lsprings)) = layers.get(l) else { continue };
+        if let Some(lf) = lfaces {
+            face_count += lf.entities().len();
+            if let (LayerKind::Shell, Some(m)) = (layer.kind, material) {
+                for &f in lf.entities() {
+                    if let Ok((fv, Some(rest))) = faces.get(f) {
+                        el.membranes.push(MembraneElem { v: fv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame: m.lame });
+                    }
+                }
+            }
+        }
+        if let (Some(le), Some(b)) = (ledges, bending) {
+            for &e in le.entities() {
+                if let Ok((ev, h)) = hinges.get(e) {
+                    let v = [idx(&ev.0[0]), idx(&ev.0[1]), idx(&h.opposite[0]), idx(&h.opposite[1])];
+                    el.hinges.push(HingeElem { v, rest: h.rest, model: b.model });
+                }
+            }
+        }
+        if let (Some(lt), Some(m)) = (ltets, material) {
+            tet_count += lt.entities().len();
+            for &t in lt.entities() {
+                if let Ok((tv, rest)) = tets.get(t) {
+                    el.tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame: m.lame });
+                }
+            }
+        }
+        if let Some(ls) = lsprings {
+            for &s in ls.entities() {
+                if let Ok(sp) = springs.get(s) {
+                    el.springs.push(SpringElem { v: [idx(&sp.a), idx(&sp.b)], k: sp.stiffness });
+                }
+            }
+        }
+    }
+    let (lo, hi) = body.x.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+    body.length_scale = (hi - lo).length();
+    body.elements = el;
+    body.face_count = face_count;
+    body.tet_count = tet_count;
+    body.invalidate_pattern();
+}

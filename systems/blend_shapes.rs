@@ -1,0 +1,50 @@
+//! BlendShapeUpdate: evaluates the patch's prescribed motions at this frame and writes the
+//! driven coordinates (H15 6.1: compression increments; bending for validation).
+
+use bevy_ecs::prelude::*;
+use skinsim::model::*;
+
+pub fn apply_motions(
+    clock: Res<SimClock>,
+    patches: Query<(&PatchMotion, &PatchLayers)>,
+    layers: Query<(&Layer, &LayerVertices)>,
+    mut vertices: Query<(&RestPos, &Prescribed, &mut Position)>,
+) {
+    let frame = clock.frame as f64;
+    for (motion, patch_layers) in &patches {
+        for &layer in patch_layers.entities() {
+            let Ok((_, verts)) = layers.get(layer) else { continue };
+            let acting: Vec<_> = motion.motions.iter().filter(|m| m.layers.contains(&layer)).collect();
+            if acting.is_empty() {
+                continue;
+            }
+            for &v in verts.entities() {
+                let Ok((rest, fixed, mut pos)) = vertices.get_mut(v) else { continue };
+                let mut target = rest.0;
+                for m in &acting {
+                    target = m.apply(target, motion.centre, frame);
+                }
+                let mut p = pos.0;
+                for k in 0..3 {
+                    if fixed.0[k] {
+                        p[k] = target[k];
+                    }
+                }
+                // Predictor for free coordinates: the incremental compression (keeps big load
+                // steps from squashing the elements next to the driven boundary).
+                for m in &acting {
+                    if let MotionKind::Compress { axis, predict: true } = m.kind {
+                        if !fixed.0[axis] {
+                            let c = motion.centre[axis];
+                            let ratio = (1.0 - m.keyframes.at(frame)) / (1.0 - m.keyframes.at(frame - 1.0));
+                            p[axis] = c + (p[axis] - c) * ratio;
+                        }
+                    }
+                }
+                if p != pos.0 {
+                    pos.0 = p;
+                }
+            }
+        }
+    }
+}

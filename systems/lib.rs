@@ -1,0 +1,13 @@
+//! skinsim systems: one file per stage of the frame (ARCHITECTURE.md 2) and `schedule.rs`,
+//! which orders them. Systems are thin adapters between the ECS and `skinsim`'s math.
+
+pub mod assemble;
+pub mod blend_shapes;
+pub mod log;
+pub mod schedule;
+pub mod simulation;
+pub mod solve;
+pub mod writeback;
+
+pub use schedule::{build_schedule, StageSet};
+pub use simulation::{FrameStats, Simulation};

@@ -1,0 +1,198 @@
+//! Log: sends the frame to Rerun (every layer as a Mesh3D coloured by strain, scalars for
+//! energy, Newton iterations and stage timings) and writes requested OBJ files.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+use bevy_ecs::prelude::*;
+use glam::{DVec2, DVec3};
+use skinsim::mesh;
+use skinsim::model::*;
+
+/// Where Rerun data goes (a file, a spawned viewer, a connection, or memory in tests).
+#[derive(Resource)]
+pub struct RerunSink(pub rerun::RecordingStream);
+
+/// Write obj/<patch>/<layer>/<frame>.obj under this directory.
+#[derive(Resource, Clone, Debug)]
+pub struct ObjExport(pub PathBuf);
+
+pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>) -> bool {
+    sink.is_some() || obj.is_some()
+}
+
+/// Triangles of a layer as drawn: its faces, or the boundary of its tetrahedra.
+#[derive(Default)]
+pub struct RenderMesh {
+    epoch: u64,
+    vertices: Vec<Entity>,
+    tris: Vec<[u32; 3]>,
+    rest_area: Vec<f64>,
+    logged_topology: bool,
+}
+
+#[derive(Default)]
+pub struct RenderCache(HashMap<Entity, RenderMesh>);
+
+type LayerQ<'a> = (&'a Layer, &'a TopologyEpoch, Option<&'a LayerFaces>, Option<&'a LayerTets>);
+
+#[allow(clippy::too_many_arguments)]
+pub fn log_frame(
+    clock: Res<SimClock>,
+    timings: Res<Timings>,
+    report: Res<FrameReport>,
+    sink: Option<Res<RerunSink>>,
+    obj: Option<Res<ObjExport>>,
+    mut failure: ResMut<SimFailure>,
+    mut cache: Local<RenderCache>,
+    patches: Query<(&Patch, &PatchLayers)>,
+    layers: Query<LayerQ>,
+    faces: Query<&FaceVerts>,
+    tets: Query<&TetVerts>,
+    vertices: Query<(&Position, &RestPos, &MaterialPos)>,
+) {
+    let rec = sink.as_ref().map(|s| &s.0);
+    if let Some(rec) = rec {
+        rec.set_time_sequence("frame", clock.frame as i64);
+        rec.set_duration_secs("sim_time", clock.time);
+    }
+    let mut ordered: Vec<_> = patches.iter().collect();
+    ordered.sort_by_key(|(p, _)| p.index);
+    for (patch, patch_layers) in ordered {
+        for &l in patch_layers.entities() {
+            let Ok((layer, epoch, lf, lt)) = layers.get(l) else { continue };
+            let rm = cache.0.entry(l).or_default();
+            if rm.vertices.is_empty() || rm.epoch != epoch.0 {
+                *rm = render_mesh(epoch.0, lf, lt, &faces, &tets, &vertices);
+            }
+            if rm.tris.is_empty() {
+                continue;
+            }
+            let pos: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.0 .0).unwrap_or(DVec3::NAN)).collect();
+            if let Some(rec) = rec {
+                let path = format!("patches/{}/{}", patch.name, layer.name);
+                log_mesh(rec, &path, rm, &pos);
+            }
+            if let Some(ObjExport(dir)) = obj.as_deref() {
+                let uv: Vec<DVec2> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
+                let folder = dir.join("obj").join(&patch.name).join(&layer.name);
+                let file = folder.join(format!("{:05}.obj", clock.frame));
+                let res = std::fs::create_dir_all(&folder).and_then(|_| mesh::obj::write(&file, &pos, &uv, &rm.tris));
+                if let Err(e) = res {
+                    failure.0.get_or_insert(format!("cannot write {}: {e}", file.display()));
+                }
+            }
+        }
+    }
+    if let Some(rec) = rec {
+        for p in &report.patches {
+            let base = format!("stats/{}", p.name);
+            let _ = rec.log(format!("{base}/energy"), &rerun::Scalars::new([p.energy]));
+            let _ = rec.log(format!("{base}/newton_iterations"), &rerun::Scalars::new([p.newton_iterations as f64]));
+            let _ = rec.log(format!("{base}/residual"), &rerun::Scalars::new([p.residual]));
+        }
+        for stage in Stage::ALL {
+            if stage != Stage::Log {
+                let _ = rec.log(format!("timings/{}", stage.key()), &rerun::Scalars::new([timings.get(stage)]));
+            }
+        }
+    }
+}
+
+fn render_mesh(
+    epoch: u64,
+    lf: Option<&LayerFaces>,
+    lt: Option<&LayerTets>,
+    faces: &Query<&FaceVerts>,
+    tets: &Query<&TetVerts>,
+    vertices: &Query<(&Position, &RestPos, &MaterialPos)>,
+) -> RenderMesh {
+    let tris_e: Vec<[Entity; 3]> = if let Some(lf) = lf.filter(|f| !f.entities().is_empty()) {
+        lf.entities().iter().filter_map(|f| faces.get(*f).ok().map(|fv| fv.0)).collect()
+    } else if let Some(lt) = lt {
+        let tet_e: Vec<[Entity; 4]> = lt.entities().iter().filter_map(|t| tets.get(*t).ok().map(|tv| tv.0)).collect();
+        let mut index = HashMap::new();
+        let mut ents = Vec::new();
+        let as_idx: Vec<[u32; 4]> = tet_e
+            .iter()
+            .map(|t| {
+                t.map(|e| {
+                    *index.entry(e).or_insert_with(|| {
+                        ents.push(e);
+                        (ents.len() - 1) as u32
+                    })
+                })
+            })
+            .collect();
+        mesh::surface_of_tets(&as_idx).into_iter().map(|f| f.map(|i| ents[i as usize])).collect()
+    } else {
+        Vec::new()
+    };
+    let mut index = HashMap::new();
+    let mut rm = RenderMesh { epoch, ..Default::default() };
+    for t in &tris_e {
+        let tri = t.map(|e| {
+            *index.entry(e).or_insert_with(|| {
+                rm.vertices.push(e);
+                (rm.vertices.len() - 1) as u32
+            })
+        });
+        rm.tris.push(tri);
+    }
+    let rest: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.1 .0).unwrap_or_default()).collect();
+    rm.rest_area = rm.tris.iter().map(|t| tri_area(&rest, t)).collect();
+    rm
+}
+
+fn tri_area(p: &[DVec3], t: &[u32; 3]) -> f64 {
+    let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
+    0.5 * (b - a).cross(c - a).length()
+}
+
+/// Colour of an area strain: blue for stretch, red for compression, white at rest (LK14 fig. 6-4).
+/// Saturates at 10 %.
+pub fn strain_colour(strain: f64) -> [u8; 4] {
+    let s = (strain / 0.1).clamp(-1.0, 1.0);
+    let fade = |s: f64| (255.0 * (1.0 - s.abs())).round() as u8;
+    if s >= 0.0 {
+        [fade(s), fade(s), 255, 255]
+    } else {
+        [255, fade(s), fade(s), 255]
+    }
+}
+
+fn log_mesh(rec: &rerun::RecordingStream, path: &str, rm: &mut RenderMesh, pos: &[DVec3]) {
+    let mut normals = vec![DVec3::ZERO; pos.len()];
+    let mut strain = vec![0.0; pos.len()];
+    let mut weight = vec![0.0; pos.len()];
+    for (t, ra) in rm.tris.iter().zip(&rm.rest_area) {
+        let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
+        let n = (b - a).cross(c - a);
+        let s = 0.5 * n.length() / ra - 1.0;
+        for &v in t {
+            normals[v as usize] += n;
+            strain[v as usize] += s;
+            weight[v as usize] += 1.0;
+        }
+    }
+    let f3 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
+    if !rm.logged_topology {
+        let _ = rec.log_static(path, &rerun::Mesh3D::update_fields().with_triangle_indices(rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t))));
+        rm.logged_topology = true;
+    }
+    let colours: Vec<rerun::Color> = strain
+        .iter()
+        .zip(&weight)
+        .map(|(s, w)| {
+            let [r, g, b, a] = strain_colour(s / f64::max(*w, 1.0));
+            rerun::Color::from_unmultiplied_rgba(r, g, b, a)
+        })
+        .collect();
+    let _ = rec.log(
+        path,
+        &rerun::Mesh3D::update_fields()
+            .with_vertex_positions(pos.iter().map(|p| f3(*p)))
+            .with_vertex_normals(normals.iter().map(|n| f3(n.normalize_or_zero())))
+            .with_vertex_colors(colours),
+    );
+}

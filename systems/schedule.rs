@@ -1,0 +1,54 @@
+//! The frame: ten chained stages (ARCHITECTURE.md 2). A stage runs only when the scene declares
+//! what it works on. Remesh, the two constraint stages, PropertyResample and AnchorWalk have no
+//! systems yet: their features are issues 4-6.
+
+use bevy_ecs::prelude::*;
+use bevy_ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
+use skinsim::model::{PatchMotion, Stage, Timings};
+
+use crate::log::{wants_logging, log_frame};
+use crate::{assemble, blend_shapes, solve, writeback};
+
+#[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
+pub struct Frame;
+
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct StageSet(pub Stage);
+
+pub fn build_schedule() -> Schedule {
+    let mut s = Schedule::new(Frame);
+    // Heavy work runs in rayon inside systems; one executor thread avoids a second pool.
+    s.set_executor(SingleThreadedExecutor::new());
+    s.configure_sets(
+        (
+            StageSet(Stage::BlendShapes).run_if(any_with_component::<PatchMotion>),
+            StageSet(Stage::Remesh),
+            StageSet(Stage::PropertyResample),
+            StageSet(Stage::ConstraintResample),
+            StageSet(Stage::ConstraintAdjust),
+            StageSet(Stage::AnchorWalk),
+            StageSet(Stage::Assemble),
+            StageSet(Stage::Solve),
+            StageSet(Stage::Writeback),
+            StageSet(Stage::Log).run_if(wants_logging),
+        )
+            .chain(),
+    );
+    s.add_systems(timed(Stage::BlendShapes, blend_shapes::apply_motions));
+    s.add_systems(timed(Stage::Assemble, assemble::gather_bodies));
+    s.add_systems(timed(Stage::Solve, solve::solve_patches));
+    s.add_systems(timed(Stage::Writeback, writeback::scatter_bodies));
+    s.add_systems(timed(Stage::Log, log_frame));
+    s
+}
+
+/// A stage's systems between two timer systems that record its wall time in `Timings`.
+fn timed<M>(stage: Stage, systems: impl IntoScheduleConfigs<bevy_ecs::system::ScheduleSystem, M>) -> bevy_ecs::schedule::ScheduleConfigs<bevy_ecs::system::ScheduleSystem> {
+    (
+        |mut t: ResMut<Timings>| t.begin(),
+        systems,
+        move |mut t: ResMut<Timings>| t.end(stage),
+    )
+        .chain()
+        .in_set(StageSet(stage))
+}

@@ -1,0 +1,76 @@
+//! A World with a spawned scene and the frame schedule: what the CLI and the tests drive.
+
+use bevy_ecs::prelude::*;
+use serde::Serialize;
+use skinsim::model::*;
+use skinsim::scene::{spawn, BuiltScene};
+
+use crate::schedule::build_schedule;
+
+/// One line of stats.jsonl.
+#[derive(Clone, Debug, Serialize)]
+pub struct FrameStats {
+    pub frame: u32,
+    pub time: f64,
+    pub patches: Vec<PatchReport>,
+    pub timings_ms: serde_json::Map<String, serde_json::Value>,
+}
+
+impl FrameStats {
+    pub fn timing(&self, key: &str) -> f64 {
+        self.timings_ms.get(key).and_then(|v| v.as_f64()).unwrap_or(0.0)
+    }
+}
+
+pub struct Simulation {
+    pub world: World,
+    pub schedule: Schedule,
+    pub patches: Vec<Entity>,
+}
+
+impl Simulation {
+    pub fn new(scene: &BuiltScene) -> Self {
+        let mut world = World::new();
+        let patches = spawn(&mut world, scene);
+        Simulation { world, schedule: build_schedule(), patches }
+    }
+
+    /// Computes the next frame.
+    pub fn step(&mut self) -> FrameStats {
+        {
+            let mut clock = self.world.resource_mut::<SimClock>();
+            clock.frame += 1;
+            clock.time = clock.frame as f64 * clock.dt;
+        }
+        self.world.resource_mut::<Timings>().reset();
+        let start = std::time::Instant::now();
+        self.schedule.run(&mut self.world);
+        let total = start.elapsed().as_secs_f64() * 1e3;
+        let clock = *self.world.resource::<SimClock>();
+        let timings = self.world.resource::<Timings>();
+        let mut timings_ms = serde_json::Map::new();
+        for stage in Stage::ALL {
+            timings_ms.insert(stage.key().into(), timings.get(stage).into());
+        }
+        timings_ms.insert("total".into(), total.into());
+        FrameStats { frame: clock.frame, time: clock.time, patches: self.world.resource::<FrameReport>().patches.clone(), timings_ms }
+    }
+
+    /// Why the simulation failed, if it did.
+    pub fn failure(&self) -> Option<String> {
+        self.world.resource::<SimFailure>().0.clone()
+    }
+
+    /// Positions of a layer's vertices in spawn order.
+    pub fn layer_positions(&mut self, patch: &str, layer: &str) -> Vec<glam::DVec3> {
+        let mut q = self.world.query::<(&Layer, &LayerOf, &LayerVertices)>();
+        let mut pq = self.world.query::<&Patch>();
+        let mut out = Vec::new();
+        for (l, of, verts) in q.iter(&self.world) {
+            if l.name == layer && pq.get(&self.world, of.0).map(|p| p.name == patch).unwrap_or(false) {
+                out = verts.entities().to_vec();
+            }
+        }
+        out.iter().map(|e| self.world.get::<Position>(*e).unwrap().0).collect()
+    }
+}

@@ -1,0 +1,52 @@
+//! Solve: Newton on every patch, patches in parallel (rayon). Results are per patch and do not
+//! depend on which other patches share the world.
+
+use bevy_ecs::prelude::*;
+use rayon::prelude::*;
+use skinsim::model::*;
+use skinsim::solve::{solve_frame, SolverBody};
+
+pub fn solve_patches(
+    clock: Res<SimClock>,
+    mut patches: Query<(&Patch, &SolverSettings, &mut SolverBody)>,
+    mut report: ResMut<FrameReport>,
+    mut failure: ResMut<SimFailure>,
+) {
+    let mut work: Vec<(&Patch, &SolverSettings, Mut<SolverBody>)> = patches.iter_mut().collect();
+    work.sort_by_key(|(p, ..)| p.index);
+    let outcomes: Vec<_> = work
+        .par_iter_mut()
+        .map(|(patch, settings, body)| {
+            let body: &mut SolverBody = body;
+            let out = solve_frame(body, &settings.0, clock.dt);
+            (patch.name.clone(), body.vertices.len(), body.face_count, body.tet_count, out)
+        })
+        .collect();
+    report.patches.clear();
+    for (name, vertices, faces, tets, out) in outcomes {
+        match out {
+            Ok(o) => report.patches.push(PatchReport {
+                name,
+                vertices,
+                faces,
+                tets,
+                newton_iterations: o.iterations,
+                converged: o.converged,
+                residual: o.residual,
+                energy: o.energy,
+                energy_membrane: o.parts[0],
+                energy_bending: o.parts[1],
+                energy_volume: o.parts[2],
+                energy_springs: o.parts[3],
+                regularized: o.regularized,
+                line_search_failures: o.line_search_failures,
+            }),
+            Err(reason) => {
+                if failure.0.is_none() {
+                    failure.0 = Some(format!("frame {}: patch \"{name}\": {reason}", clock.frame));
+                }
+                report.patches.push(PatchReport { name, vertices, faces, tets, converged: false, residual: f64::NAN, energy: f64::NAN, ..Default::default() });
+            }
+        }
+    }
+}

@@ -1,0 +1,200 @@
+//! `skinsim`: run and check skin scenes.
+//!
+//! Exit status: 0 success, 1 simulation failure (NaN, no convergence), 2 bad input.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use skinsim::scene::{self, BuiltScene};
+use skinsim_systems::log::{ObjExport, RerunSink};
+use skinsim_systems::Simulation;
+
+#[derive(Parser)]
+#[command(name = "skinsim", version, about = "Physically based wrinkling of multi-layer skin")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scene: writes stats.jsonl, a Rerun recording and requested exports under --out.
+    Run(RunArgs),
+    /// Validate a scene (schema, values, meshes, assets) without running it.
+    Check { scene: PathBuf },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Export {
+    Obj,
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    scene: PathBuf,
+    /// Output folder (default: out/<scene name>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Number of frames (default: the scene's).
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Write the Rerun recording to this file (default: <out>/recording.rrd).
+    #[arg(long, conflicts_with_all = ["spawn", "connect", "no_rerun"])]
+    rrd: Option<PathBuf>,
+    /// Stream to a newly spawned Rerun viewer (needs `rerun` on PATH).
+    #[arg(long, conflicts_with_all = ["connect", "no_rerun"])]
+    spawn: bool,
+    /// Stream to a running viewer, e.g. rerun+http://127.0.0.1:9876/proxy.
+    #[arg(long, conflicts_with = "no_rerun")]
+    connect: Option<String>,
+    /// No Rerun output at all.
+    #[arg(long)]
+    no_rerun: bool,
+    /// Extra exports.
+    #[arg(long, value_enum)]
+    export: Vec<Export>,
+    /// Worker threads (default: all cores). Results are identical for a fixed count.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No progress bar or summary.
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    tracing_subscriber::fmt().with_env_filter(tracing_subscriber::EnvFilter::from_default_env()).with_writer(std::io::stderr).init();
+    let result = std::panic::catch_unwind(|| match cli.command {
+        Command::Check { scene } => check(&scene),
+        Command::Run(args) => run(args),
+    });
+    match result {
+        Ok(code) => code,
+        Err(_) => {
+            eprintln!("error: internal error (a bug in skinsim; the message above says where)");
+            ExitCode::from(70)
+        }
+    }
+}
+
+fn load(path: &Path) -> Result<BuiltScene, ExitCode> {
+    scene::load(path).map_err(|e| {
+        eprintln!("error: {e}");
+        ExitCode::from(2)
+    })
+}
+
+fn check(path: &Path) -> ExitCode {
+    match load(path) {
+        Ok(s) => {
+            let verts: usize = s.patches.iter().flat_map(|p| &p.layers).map(|l| l.mesh.rest().len()).sum();
+            println!("{}: ok ({} patches, {} vertices, {} frames)", path.display(), s.patches.len(), verts, s.scene.frames);
+            ExitCode::SUCCESS
+        }
+        Err(code) => code,
+    }
+}
+
+fn run(args: RunArgs) -> ExitCode {
+    let scene = match load(&args.scene) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    if let Some(n) = args.threads {
+        if n == 0 || rayon::ThreadPoolBuilder::new().num_threads(n).build_global().is_err() {
+            eprintln!("error: --threads must be at least 1");
+            return ExitCode::from(2);
+        }
+    }
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.scene.name));
+    if let Err(e) = std::fs::create_dir_all(&out) {
+        eprintln!("error: cannot create the output folder {}: {e}", out.display());
+        return ExitCode::from(2);
+    }
+    let frames = args.frames.unwrap_or(scene.scene.frames);
+    let mut sim = Simulation::new(&scene);
+    let rec = match recording(&args, &scene, &out) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: cannot open the Rerun output: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if let Some(rec) = &rec {
+        sim.world.insert_resource(RerunSink(rec.clone()));
+    }
+    if args.export.contains(&Export::Obj) || scene.scene.output.obj {
+        sim.world.insert_resource(ObjExport(out.clone()));
+    }
+    let mut stats = if scene.scene.output.stats {
+        match std::fs::File::create(out.join("stats.jsonl")) {
+            Ok(f) => Some(std::io::BufWriter::new(f)),
+            Err(e) => {
+                eprintln!("error: cannot write {}: {e}", out.join("stats.jsonl").display());
+                return ExitCode::from(2);
+            }
+        }
+    } else {
+        None
+    };
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(frames as u64) };
+    bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {elapsed} (eta {eta})  {msg}").unwrap());
+    let start = std::time::Instant::now();
+    let mut unconverged = Vec::new();
+    let mut status = ExitCode::SUCCESS;
+    for _ in 0..frames {
+        let frame = sim.step();
+        if let Some(w) = stats.as_mut() {
+            let line = serde_json::to_string(&frame).expect("stats serialize");
+            if writeln!(w, "{line}").and_then(|_| w.flush()).is_err() {
+                eprintln!("error: cannot write stats.jsonl");
+                status = ExitCode::from(1);
+                break;
+            }
+        }
+        let iters: u32 = frame.patches.iter().map(|p| p.newton_iterations).sum();
+        bar.set_message(format!("{iters} Newton its, {:.0} ms/frame", frame.timing("total")));
+        bar.inc(1);
+        if let Some(reason) = sim.failure() {
+            bar.abandon();
+            eprintln!("error: simulation failed at {reason}; frames before it are complete in {}", out.display());
+            status = ExitCode::from(1);
+            break;
+        }
+        for p in frame.patches.iter().filter(|p| !p.converged) {
+            unconverged.push(format!("frame {} patch \"{}\" (residual {:.2e})", frame.frame, p.name, p.residual));
+        }
+    }
+    bar.finish_and_clear();
+    if let Some(rec) = &rec {
+        let _ = rec.flush_blocking();
+    }
+    if !unconverged.is_empty() && status == ExitCode::SUCCESS {
+        eprintln!("error: Newton did not converge in {} frame(s): {}", unconverged.len(), unconverged.join("; "));
+        status = ExitCode::from(1);
+    }
+    if !args.quiet {
+        eprintln!("{} frames in {:.2} s; outputs in {}", frames, start.elapsed().as_secs_f64(), out.display());
+    }
+    status
+}
+
+fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<rerun::RecordingStream>, String> {
+    if args.no_rerun || (!scene.scene.output.rerun && args.rrd.is_none() && !args.spawn && args.connect.is_none()) {
+        return Ok(None);
+    }
+    let builder = rerun::RecordingStreamBuilder::new("skinsim").recording_id(format!("skinsim-{}", scene.scene.name));
+    let rec = if args.spawn {
+        builder.spawn()
+    } else if let Some(url) = &args.connect {
+        builder.connect_grpc_opts(url.clone())
+    } else {
+        builder.save(args.rrd.clone().unwrap_or_else(|| out.join("recording.rrd")))
+    }
+    .map_err(|e| e.to_string())?;
+    rec.set_log_time_enabled(false);
+    Ok(Some(rec))
+}
