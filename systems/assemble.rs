@@ -26,6 +26,7 @@ pub fn gather_bodies(
     mut patches: Query<(&PatchLayers, &mut SolverBody)>,
     layers: Query<LayerItems>,
     vertices: Query<(&Position, &Velocity, &Mass, &Prescribed)>,
+    ties: Query<&Tied>,
     faces: Query<(&FaceVerts, Option<&FaceRest>)>,
     hinges: Query<(&EdgeVerts, &Hinge)>,
     tets: Query<(&TetVerts, &TetRestShape)>,
@@ -34,7 +35,7 @@ pub fn gather_bodies(
     for (patch_layers, mut body) in &mut patches {
         let key = topology_key(patch_layers, &layers);
         if key != body.topology_key {
-            rebuild(&mut body, patch_layers, &layers, &vertices, &faces, &hinges, &tets, &springs);
+            rebuild(&mut body, patch_layers, &layers, &vertices, &ties, &faces, &hinges, &tets, &springs);
             body.topology_key = key;
         }
         let body = body.as_mut();
@@ -81,6 +82,7 @@ fn rebuild(
     patch_layers: &PatchLayers,
     layers: &Query<LayerItems>,
     vertices: &Query<(&Position, &Velocity, &Mass, &Prescribed)>,
+    ties: &Query<&Tied>,
     faces: &Query<(&FaceVerts, Option<&FaceRest>)>,
     hinges: &Query<(&EdgeVerts, &Hinge)>,
     tets: &Query<(&TetVerts, &TetRestShape)>,
@@ -110,6 +112,16 @@ fn rebuild(
         body.fixed[i] = f.0;
     }
     let idx = |e: &Entity| index[e];
+    body.tie = (0..n as u32).map(|i| (i, [false; 3])).collect();
+    for (i, &e) in body.vertices.iter().enumerate() {
+        if let Ok(t) = ties.get(e) {
+            if let Some(&m) = index.get(&t.master) {
+                if (m as usize) < i {
+                    body.tie[i] = (m, t.dofs);
+                }
+            }
+        }
+    }
     let mut el = Elements::default();
     let (mut face_count, mut tet_count) = (0, 0);
     for &l in patch_layers.entities() {

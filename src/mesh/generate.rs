@@ -14,6 +14,9 @@ pub enum GridPattern {
     Equilateral,
     /// Each cell cut along the same diagonal.
     RightTriangle,
+    /// Diagonals alternating in a checkerboard: no handedness, so bending does not couple to
+    /// twist (a one-row strip of `RightTriangle` cells twists as it bends).
+    Alternating,
 }
 
 /// A rectangular grid [0, size.x] x [0, size.y] at height z with `cells` cells.
@@ -27,7 +30,7 @@ pub fn grid(size: DVec2, cells: (u32, u32), pattern: GridPattern, z: f64) -> Sur
         (m.rest.len() - 1) as u32
     };
     match pattern {
-        GridPattern::RightTriangle => {
+        GridPattern::RightTriangle | GridPattern::Alternating => {
             for j in 0..=ny {
                 for i in 0..=nx {
                     push(&mut m, i as f64 * dx, j as f64 * dy);
@@ -37,8 +40,13 @@ pub fn grid(size: DVec2, cells: (u32, u32), pattern: GridPattern, z: f64) -> Sur
             for j in 0..ny {
                 for i in 0..nx {
                     let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                    m.faces.push([a, b, c]);
-                    m.faces.push([a, c, d]);
+                    if pattern == GridPattern::Alternating && (i + j) % 2 == 1 {
+                        m.faces.push([a, b, d]);
+                        m.faces.push([b, c, d]);
+                    } else {
+                        m.faces.push([a, b, c]);
+                        m.faces.push([a, c, d]);
+                    }
                 }
             }
         }
@@ -155,7 +163,7 @@ mod tests {
 
     #[test]
     fn grids_are_valid_and_cover_the_rectangle() {
-        for pattern in [GridPattern::Equilateral, GridPattern::RightTriangle] {
+        for pattern in [GridPattern::Equilateral, GridPattern::RightTriangle, GridPattern::Alternating] {
             let m = grid(DVec2::new(3.0, 2.0), (6, 4), pattern, 0.0);
             check_surface(&m).unwrap();
             let area: f64 = m

@@ -130,6 +130,14 @@ pub struct Mass(pub f64);
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Prescribed(pub [bool; 3]);
 
+/// Coordinates of this vertex that move with another vertex's (shared solver DOFs): how a
+/// plane-strain strip one cell deep stays two-dimensional (H15 6.1).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tied {
+    pub master: Entity,
+    pub dofs: [bool; 3],
+}
+
 // ---------------------------------------------------------------- edges, faces, tets
 
 /// Edge -> Layer.

@@ -60,6 +60,8 @@ pub enum BuiltDriver {
     Bend { layers: Vec<usize>, axis: usize, keyframes: Vec<(u32, f64)> },
     /// Springs (vertex of `layer`, vertex of `to`, stiffness N/m).
     Attach { layer: usize, to: usize, springs: Vec<(u32, u32, f64)> },
+    /// Per layer: (vertex, master vertex) pairs whose in-plane coordinates are shared.
+    PlaneStrain { layers: Vec<usize>, axis: usize, ties: Vec<Vec<(u32, u32)>> },
 }
 
 /// Reads, validates and builds a scene file.
@@ -196,6 +198,11 @@ impl Builder {
                     let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
                     let keyframes = keyframes.iter().map(|&(f, k)| (f, k / len)).collect();
                     BuiltDriver::Bend { layers, axis: axis.index(), keyframes }
+                }
+                DriverSpec::PlaneStrain { layers: ls, axis } => {
+                    let layers_i: Vec<usize> = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                    let ties = layers_i.iter().map(|&li| plane_strain_ties(layers[li].mesh.rest(), axis.index())).collect();
+                    BuiltDriver::PlaneStrain { layers: layers_i, axis: axis.index(), ties }
                 }
                 DriverSpec::Attach { layer, to, stiffness } => {
                     let a = find(format!("{dat}.layer"), layer)?;
@@ -357,6 +364,28 @@ impl Builder {
         }
         Ok(out)
     }
+}
+
+/// Vertices that differ only along `axis` form a group; each is tied to the group's first.
+fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
+    let tol = 1e-9 * bbox_diag(rest).max(1e-300);
+    let (a, b) = match axis {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    let key = |p: &DVec3| ((p[a] / tol).round() as i64, (p[b] / tol).round() as i64);
+    let mut first: HashMap<(i64, i64), u32> = HashMap::new();
+    let mut ties = Vec::new();
+    for (i, p) in rest.iter().enumerate() {
+        match first.get(&key(p)) {
+            Some(&m) => ties.push((i as u32, m)),
+            None => {
+                first.insert(key(p), i as u32);
+            }
+        }
+    }
+    ties
 }
 
 fn bbox(points: &[DVec3]) -> (DVec3, DVec3) {

@@ -310,6 +310,14 @@ pub enum DriverSpec {
     /// Zero-length springs from every vertex of `layer` to the vertex of `to` at the same
     /// material position; `stiffness` per unit area (stress / length units).
     Attach { layer: String, to: String, stiffness: f64 },
+    /// Plane strain along `axis` (H15 6.1): the axis coordinate of every vertex of the layers
+    /// is held, and vertices that differ only along the axis share their other coordinates, so
+    /// a strip one cell deep deforms as a 2D section (no twist, no transverse curvature).
+    PlaneStrain {
+        layers: Vec<String>,
+        #[serde(default = "axis_y")]
+        axis: Axis,
+    },
 }
 
 fn axis_y() -> Axis {

@@ -31,13 +31,21 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         .map(|l| vec![[l.kind == LayerKind::Kinematic; 3]; l.mesh.rest().len()])
         .collect();
     for d in &p.drivers {
-        if let BuiltDriver::Pin { layer, vertices, dofs } = d {
-            for &v in vertices {
-                let f = &mut fixed[*layer][v as usize];
-                for k in 0..3 {
-                    f[k] |= dofs[k];
+        match d {
+            BuiltDriver::Pin { layer, vertices, dofs } => {
+                for &v in vertices {
+                    let f = &mut fixed[*layer][v as usize];
+                    for k in 0..3 {
+                        f[k] |= dofs[k];
+                    }
                 }
             }
+            BuiltDriver::PlaneStrain { layers, axis, .. } => {
+                for &l in layers {
+                    fixed[l].iter_mut().for_each(|f| f[*axis] = true);
+                }
+            }
+            _ => {}
         }
     }
     let mut all_rest = Vec::new();
@@ -73,6 +81,16 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                     })
                     .collect();
                 world.spawn_batch(batch);
+            }
+            BuiltDriver::PlaneStrain { layers: ls, axis, ties } => {
+                for (&l, pairs) in ls.iter().zip(ties) {
+                    let mut dofs = [true; 3];
+                    dofs[*axis] = false;
+                    for &(v, m) in pairs {
+                        let master = layer_vertices[l][m as usize];
+                        world.entity_mut(layer_vertices[l][v as usize]).insert(Tied { master, dofs });
+                    }
+                }
             }
             BuiltDriver::Pin { .. } => {}
         }

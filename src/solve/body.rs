@@ -61,6 +61,8 @@ pub struct SolverBody {
     pub v: Vec<DVec3>,
     pub mass: Vec<f64>,
     pub fixed: Vec<[bool; 3]>,
+    /// Per vertex: the vertex whose coordinates it shares (itself when none) and which ones.
+    pub tie: Vec<(u32, [bool; 3])>,
     pub elements: Elements,
     /// Faces and tets counted for reports.
     pub face_count: usize,
@@ -76,5 +78,20 @@ impl SolverBody {
     /// Drops the cached pattern (call after any change of connectivity or fixed coordinates).
     pub fn invalidate_pattern(&mut self) {
         self.system = None;
+    }
+
+    /// Copies every tied coordinate from its master, so shared DOFs start equal.
+    pub fn sync_ties(&mut self) {
+        for v in 0..self.x.len() {
+            let (m, dofs) = self.tie[v];
+            if m as usize != v {
+                for k in 0..3 {
+                    if dofs[k] {
+                        self.x[v][k] = self.x[m as usize][k];
+                        self.v[v][k] = self.v[m as usize][k];
+                    }
+                }
+            }
+        }
     }
 }

@@ -7,7 +7,7 @@ use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
 
 use super::body::Elements;
-use super::pattern::{pairs, Pattern, NONE};
+use super::pattern::{pairs, Pattern, DOUBLE, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::{hinge, membrane, spring, tet};
 
@@ -150,7 +150,11 @@ impl Scatter<'_> {
                 for q in 0..=p {
                     let pos = m[k];
                     if pos != NONE {
-                        self.values[pos as usize] += h[(p, q)];
+                        if pos & DOUBLE != 0 {
+                            self.values[(pos & !DOUBLE) as usize] += 2.0 * h[(p, q)];
+                        } else {
+                            self.values[pos as usize] += h[(p, q)];
+                        }
                     }
                     k += 1;
                 }
@@ -158,4 +162,29 @@ impl Scatter<'_> {
         }
         energy
     }
+}
+
+/// Gradient of the elastic energy (springs included) at every vertex, fixed ones too: at a
+/// prescribed vertex it is the reaction force the support exerts (with the opposite sign).
+pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
+    let mut g = vec![DVec3::ZERO; x.len()];
+    let mut add = |vs: &[u32], gl: &[f64]| {
+        for (i, &v) in vs.iter().enumerate() {
+            g[v as usize] += DVec3::new(gl[3 * i], gl[3 * i + 1], gl[3 * i + 2]);
+        }
+    };
+    for e in &el.membranes {
+        add(&e.v, membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
+    }
+    for e in &el.hinges {
+        add(&e.v, hinge::eval(e.model, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
+    }
+    for e in &el.tets {
+        add(&e.v, tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
+    }
+    for e in &el.springs {
+        let d = spring::gradient(e.k, x[e.v[0] as usize], x[e.v[1] as usize]);
+        add(&e.v, &[d.x, d.y, d.z, -d.x, -d.y, -d.z]);
+    }
+    g
 }

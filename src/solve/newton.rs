@@ -48,7 +48,7 @@ pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Res
     let (pattern, mut chol) = match body.system.take() {
         Some(system) => system,
         None => {
-            let p = Pattern::build(&body.fixed, &body.elements);
+            let p = Pattern::build(&body.fixed, &body.tie, &body.elements);
             let s = CholeskySolver::analyze(&p);
             (p, s)
         }
@@ -66,6 +66,7 @@ fn newton(
     dt: f64,
 ) -> Result<FrameOutcome, String> {
     let n = pattern.n;
+    body.sync_ties();
     let dynamic = settings.mode == SolveMode::ImplicitEuler;
     let x_n = body.x.clone();
     let x_hat: Vec<DVec3> = if dynamic {
@@ -122,7 +123,7 @@ fn newton(
         if !phi.is_finite() || !gnorm.is_finite() {
             return Err(format!("non-finite {} after {} Newton iterations", if phi.is_finite() { "gradient" } else { "energy" }, out.iterations));
         }
-        residual = if force_scale > 0.0 { gnorm / force_scale } else { 0.0 };
+        residual = if force_scale > 0.0 { (gnorm / force_scale).max(0.0) } else { 0.0 };
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;

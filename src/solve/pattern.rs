@@ -4,6 +4,9 @@
 use super::body::Elements;
 
 pub const NONE: u32 = u32::MAX;
+/// Set on a scatter position when two different local DOFs of an element are one shared
+/// (tied) DOF: the off-diagonal local entry lands twice on the global diagonal.
+pub const DOUBLE: u32 = 1 << 31;
 
 #[derive(Clone, Debug)]
 pub struct Pattern {
@@ -29,25 +32,36 @@ pub const fn pairs(nv: usize) -> usize {
 }
 
 impl Pattern {
-    pub fn build(fixed: &[[bool; 3]], elements: &Elements) -> Pattern {
+    /// `tie[v] = (m, dofs)`: coordinates `dofs` of v share vertex m's DOFs (m < v; m = v
+    /// when untied).
+    pub fn build(fixed: &[[bool; 3]], tie: &[(u32, [bool; 3])], elements: &Elements) -> Pattern {
         let nv = fixed.len();
         let mut dof = vec![NONE; 3 * nv];
         let mut n = 0u32;
         for (v, f) in fixed.iter().enumerate() {
+            let (m, tied) = tie.get(v).copied().unwrap_or((v as u32, [false; 3]));
             for k in 0..3 {
-                if !f[k] {
+                if tied[k] && (m as usize) < v {
+                    dof[3 * v + k] = dof[3 * m as usize + k];
+                } else if !f[k] {
                     dof[3 * v + k] = n;
                     n += 1;
                 }
             }
         }
+        // Tied vertices couple wherever their masters do: link in the masters' adjacency.
+        let master = |v: u32| -> u32 {
+            let (m, tied) = tie.get(v as usize).copied().unwrap_or((v, [false; 3]));
+            if tied.iter().any(|t| *t) { m } else { v }
+        };
         // Vertex adjacency (upper: neighbours u >= v), sorted and unique.
         let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nv];
         let mut link = |vs: &[u32]| {
             for &a in vs {
                 for &b in vs {
-                    if b >= a {
-                        adj[a as usize].push(b);
+                    for (x, y) in [(a, b), (master(a), b), (a, master(b)), (master(a), master(b))] {
+                        let (lo, hi) = (x.min(y), x.max(y));
+                        adj[lo as usize].push(hi);
                     }
                 }
             }
@@ -65,23 +79,30 @@ impl Pattern {
         let mut row_idx = Vec::new();
         let mut diag = Vec::with_capacity(n as usize);
         col_ptr.push(0u32);
+        let owned = |v: usize, k: usize| {
+            let (m, tied) = tie.get(v).copied().unwrap_or((v as u32, [false; 3]));
+            !(tied[k] && (m as usize) < v)
+        };
+        let mut rows = Vec::new();
         for v in 0..nv {
             for k in 0..3 {
                 let c = dof[3 * v + k];
-                if c == NONE {
+                if c == NONE || !owned(v, k) {
                     continue;
                 }
+                rows.clear();
                 for &u in &adj[v] {
                     for m in 0..3 {
                         let r = dof[3 * u as usize + m];
                         if r != NONE && r >= c {
-                            if r == c {
-                                diag.push(row_idx.len() as u32);
-                            }
-                            row_idx.push(r);
+                            rows.push(r);
                         }
                     }
                 }
+                rows.sort_unstable();
+                rows.dedup();
+                diag.push((row_idx.len() + rows.iter().position(|&r| r == c).expect("diagonal")) as u32);
+                row_idx.extend_from_slice(&rows);
                 col_ptr.push(row_idx.len() as u32);
             }
         }
@@ -117,7 +138,13 @@ impl Pattern {
             let dp = self.dof[3 * verts[p / 3] as usize + p % 3];
             for q in 0..=p {
                 let dq = self.dof[3 * verts[q / 3] as usize + q % 3];
-                out.push(if dp == NONE || dq == NONE { NONE } else { self.position(dp, dq) });
+                out.push(if dp == NONE || dq == NONE {
+                    NONE
+                } else if p != q && dp == dq {
+                    self.position(dp, dq) | DOUBLE
+                } else {
+                    self.position(dp, dq)
+                });
             }
         }
         out

@@ -1,0 +1,198 @@
+//! VALIDATION.md B: shell mechanics against theory, as system tests (a World built from the
+//! scenes in scenes/validation/, run through the real schedule).
+
+mod common;
+
+use common::*;
+use glam::DVec3;
+use skinsim::physics::hinge;
+use skinsim::model::RestPos;
+use skinsim::scene::build::{BuiltDriver, LayerMesh};
+use skinsim::solve::eval::vertex_gradient;
+use skinsim::solve::SolverBody;
+
+/// Plate bending stiffness D = E h^3 / (12 (1 - nu^2)) of the first layer.
+fn plate_d(scene: &skinsim::scene::BuiltScene) -> f64 {
+    let l = &scene.patches[0].layers[0];
+    let m = l.material.unwrap();
+    m.young * l.thickness.unwrap().powi(3) / (12.0 * (1.0 - m.poisson * m.poisson))
+}
+
+/// Hinge energy per unit area of a sheet bent into a cylinder, against Kirchhoff D / (2 R^2).
+/// Measured over hinges away from the boundary (boundary edges carry none): the mesh is a
+/// lattice with one edge per direction per cell, so the energy per area is the sum over edge
+/// directions of the mean of W / A_bar (A_bar, the hinge's two faces, is one cell).
+/// `jitter` moves interior vertices by up to that fraction of the spacing (seeded): an
+/// irregular mesh whose edges are grouped by their direction before the jitter.
+fn cylinder_error(mut scene: skinsim::scene::BuiltScene, axis: usize, jitter: f64) -> f64 {
+    for d in &mut scene.patches[0].drivers {
+        if let BuiltDriver::Bend { axis: a, .. } = d {
+            *a = axis;
+        }
+    }
+    let LayerMesh::Surface(m) = &mut scene.patches[0].layers[0].mesh else { unreachable!() };
+    let lattice = m.rest.clone();
+    let (lo, hi) = lattice.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+    if jitter > 0.0 {
+        let h = 1e-3 * jitter;
+        for (i, p) in m.rest.iter_mut().enumerate() {
+            if p.x > lo.x + 1e-9 && p.x < hi.x - 1e-9 && p.y > lo.y + 1e-9 && p.y < hi.y - 1e-9 {
+                let s = (i as f64 * 12.9898).sin() * 43758.5453;
+                let t = (i as f64 * 78.233).sin() * 12345.678;
+                p.x += h * (2.0 * s.fract().abs() - 1.0);
+                p.y += h * (2.0 * t.fract().abs() - 1.0);
+                m.uv[i] = p.truncate();
+            }
+        }
+    }
+    let rest_mesh = m.rest.clone();
+    let d = plate_d(&scene);
+    let BuiltDriver::Bend { keyframes, .. } = &scene.patches[0].drivers[1] else { unreachable!() };
+    let r = 1.0 / keyframes[0].1;
+    let (mut sim, _) = run(&scene);
+    let mut q = sim.world.query::<&SolverBody>();
+    let body = q.single(&sim.world).unwrap();
+    // One layer: packed vertex i is mesh vertex i.
+    let margin = 3e-3;
+    let inside = |p: DVec3| p.x > lo.x + margin && p.x < hi.x - margin && p.y > lo.y + margin && p.y < hi.y - margin;
+    let mut by_direction: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
+    for h in &body.elements.hinges {
+        let (a, b) = (lattice[h.v[0] as usize], lattice[h.v[1] as usize]);
+        if !inside(0.5 * (a + b)) {
+            continue;
+        }
+        let e = b - a;
+        let direction = e.y.atan2(e.x).to_degrees().rem_euclid(180.0).round() as i64 % 180;
+        let x = h.v.map(|v| body.x[v as usize]);
+        let w = hinge::energy(h.model, &h.rest, &x);
+        let tri = |a: u32, b: u32, c: u32| {
+            let p = |i: u32| rest_mesh[i as usize];
+            0.5 * (p(b) - p(a)).cross(p(c) - p(a)).length()
+        };
+        let a_bar = tri(h.v[0], h.v[1], h.v[2]) + tri(h.v[1], h.v[0], h.v[3]);
+        let entry = by_direction.entry(direction).or_default();
+        entry.0 += w / a_bar;
+        entry.1 += 1;
+    }
+    assert!(by_direction.len() == 3, "{by_direction:?}");
+    let measured: f64 = by_direction.values().map(|(s, n)| s / *n as f64).sum();
+    rel(measured, d / (2.0 * r * r))
+}
+
+#[test]
+fn case5_cylinder_bending_energy() {
+    let eq = load("validation/cylinder_equilateral.ron");
+    for axis in [0, 1] {
+        let err = cylinder_error(eq.clone(), axis, 0.0);
+        println!("case 5: equilateral mesh, cylinder axis {axis}: error {:+.3} %", 100.0 * err);
+        assert!(err.abs() < 0.01, "equilateral axis {axis}: {err}");
+    }
+    let rt = load("validation/cylinder_righttriangle.ron");
+    for axis in [0, 1] {
+        let err = cylinder_error(rt.clone(), axis, 0.0);
+        println!("case 5: right-triangle mesh, cylinder axis {axis}: error {:+.3} % (mesh-dependent, reported)", 100.0 * err);
+        assert!(err > -0.30 && err < 0.05, "right-triangle hinge error outside the documented range: {err}");
+    }
+    let err = cylinder_error(eq, 1, 0.25);
+    println!("case 5: jittered equilateral mesh (25 % of the spacing): error {:+.3} % (reported)", 100.0 * err);
+    assert!(err.abs() < 0.5);
+}
+
+/// Complete elliptic integrals K(k), E(k) by the arithmetic-geometric mean.
+fn elliptic(k: f64) -> (f64, f64) {
+    let (mut a, mut b, mut c) = (1.0f64, (1.0 - k * k).sqrt(), k);
+    let mut sum = 0.5 * c * c;
+    let mut pow = 0.5;
+    for _ in 0..30 {
+        let (an, bn, cn) = ((a + b) / 2.0, (a * b).sqrt(), (a - b) / 2.0);
+        a = an;
+        b = bn;
+        c = cn;
+        pow *= 2.0;
+        sum += pow * c * c;
+    }
+    let kk = std::f64::consts::PI / (2.0 * a);
+    (kk, kk * (1.0 - sum))
+}
+
+/// Elastica for a given end shortening: (P / P_cr, w / L, theta0), by bisection on k.
+fn elastica(shortening: f64) -> (f64, f64, f64) {
+    let (mut lo, mut hi) = (1e-9, 1.0 - 1e-12);
+    for _ in 0..200 {
+        let k = 0.5 * (lo + hi);
+        let (kk, ee) = elliptic(k);
+        if 2.0 * (1.0 - ee / kk) < shortening {
+            lo = k;
+        } else {
+            hi = k;
+        }
+    }
+    let k = 0.5 * (lo + hi);
+    let (kk, _) = elliptic(k);
+    let p = (2.0 * kk / std::f64::consts::PI).powi(2);
+    (p, k / kk, 2.0 * k.asin())
+}
+
+/// End force per unit width at the x-max end and midspan deflection, both from the World.
+fn strip_measures(sim: &mut skinsim_systems::Simulation) -> (f64, f64, f64) {
+    let mut q = sim.world.query::<&SolverBody>();
+    let body = q.single(&sim.world).unwrap();
+    let rest: Vec<DVec3> = body.vertices.iter().map(|e| sim.world.get::<RestPos>(*e).unwrap().0).collect();
+    let (lo, hi) = rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+    let g = vertex_gradient(&body.elements, &body.x);
+    // Every vertex whose x is held on the x-max half carries part of the end force.
+    let held: Vec<bool> = body.fixed.iter().map(|f| f[0]).collect();
+    let mid = 0.5 * (lo.x + hi.x);
+    let force: f64 = rest.iter().zip(&g).zip(&held).filter(|((p, _), h)| **h && p.x > mid).map(|((_, g), _)| -g.x).sum();
+    let width = hi.y - lo.y;
+    let deflection = body.x.iter().map(|p| p.z.abs()).fold(0.0, f64::max);
+    (force / width, deflection, hi.x - lo.x)
+}
+
+#[test]
+fn case6_euler_buckling_pinned_critical_load_and_post_buckling() {
+    let scene = load("validation/euler_pinned.ron");
+    let d = plate_d(&scene);
+    let BuiltDriver::Compress { keyframes, .. } = &scene.patches[0].drivers[2] else { unreachable!() };
+    let keys = keyframes.clone();
+    let mut sim = skinsim_systems::Simulation::new(&scene);
+    let mut checked = 0;
+    for frame in 1..=scene.scene.frames {
+        let stats = sim.step();
+        assert!(stats.patches[0].converged, "frame {frame} did not converge: {:?}", stats.patches[0]);
+        let Some(&(_, shortening)) = keys.iter().find(|k| k.0 == frame) else { continue };
+        let (p, w, l) = strip_measures(&mut sim);
+        let p_cr = std::f64::consts::PI.powi(2) * d / (l * l);
+        let (p_theory, w_theory, theta0) = elastica(shortening);
+        let (ep, ew) = (rel(p / p_cr, p_theory), rel(w / l, w_theory));
+        println!(
+            "case 6 pinned: Delta/L {shortening:.4} (theta0 {:.1} deg): P/Pcr {:.5} vs {:.5} ({:+.3} %), w/L {:.5} vs {:.5} ({:+.3} %)",
+            theta0.to_degrees(), p / p_cr, p_theory, 100.0 * ep, w / l, w_theory, 100.0 * ew
+        );
+        if frame == 1 {
+            assert!(ep.abs() < 0.01, "critical load off by {ep}");
+        } else {
+            assert!(ep.abs() < 0.005, "P/Pcr off by {ep} at Delta/L {shortening}");
+            assert!(ew.abs() < 0.005, "w/L off by {ew} at Delta/L {shortening}");
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 4);
+}
+
+#[test]
+fn case6_euler_buckling_clamped_critical_load() {
+    let scene = load("validation/euler_clamped.ron");
+    let d = plate_d(&scene);
+    let (mut sim, stats) = run(&scene);
+    assert!(stats.iter().all(|s| s.patches[0].converged));
+    let (p, _, l) = strip_measures(&mut sim);
+    // The held end cells are flat; the first free hinge lumps the curvature of half a cell on
+    // each side, so the clamp acts at the centre of the held cell: span = L - one cell (0.5 mm).
+    let l = l - 0.5e-3;
+    let p_cr = 4.0 * std::f64::consts::PI.powi(2) * d / (l * l);
+    let (p_theory, _, _) = elastica(1e-3);
+    let err = rel(p / p_cr, p_theory);
+    println!("case 6 clamped: P/Pcr {:.5} vs {:.5} ({:+.3} %)", p / p_cr, p_theory, 100.0 * err);
+    assert!(err.abs() < 0.01, "clamped critical load off by {err}");
+}
