@@ -49,14 +49,16 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         }
     }
     let mut all_rest = Vec::new();
+    let mut rng = p.solver.perturbation.map(|q| (q.amplitude, rand_pcg::Pcg64::seed_from_u64(q.seed)));
     for (li, l) in p.layers.iter().enumerate() {
-        let (layer, verts) = spawn_layer(world, patch, l, li as u32, &fixed[li]);
+        let mut l = l.clone();
+        if let (Some((amplitude, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
+            perturb(m, &fixed[li], *amplitude, rng);
+        }
+        let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li]);
         all_rest.extend_from_slice(l.mesh.rest());
         layers.push(layer);
         layer_vertices.push(verts);
-    }
-    if let Some(pert) = p.solver.perturbation {
-        perturb(world, p, &layer_vertices, &fixed, pert.amplitude, pert.seed);
     }
     let mut motion = PatchMotion::default();
     let (lo, hi) = all_rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), q| (a.min(*q), b.max(*q)));
@@ -226,33 +228,26 @@ fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
     mass
 }
 
-/// Seeded displacement of free shell vertices along their rest normal, uniform in [-a, a].
-fn perturb(world: &mut World, p: &BuiltPatch, verts: &[Vec<Entity>], fixed: &[Vec<[bool; 3]>], amplitude: f64, seed: u64) {
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-    for (li, l) in p.layers.iter().enumerate() {
-        let LayerMesh::Surface(m) = &l.mesh else { continue };
-        if l.kind != LayerKind::Shell {
-            continue;
+/// A geometric imperfection: free shell vertices moved along their rest normal by a seeded
+/// uniform amount in [-a, a], in the rest shape itself, so the structure keeps it in equilibrium
+/// (a perturbation of the initial positions alone is solved away at the first frame).
+fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], amplitude: f64, rng: &mut rand_pcg::Pcg64) {
+    let mut normal = vec![DVec3::ZERO; m.rest.len()];
+    for f in &m.faces {
+        let q = |i: usize| m.rest[f[i] as usize];
+        let n = (q(1) - q(0)).cross(q(2) - q(0));
+        for &v in f {
+            normal[v as usize] += n;
         }
-        let mut normal = vec![DVec3::ZERO; m.rest.len()];
-        for f in &m.faces {
-            let q = |i: usize| m.rest[f[i] as usize];
-            let n = (q(1) - q(0)).cross(q(2) - q(0));
-            for &v in f {
-                normal[v as usize] += n;
+    }
+    for (i, p) in m.rest.iter_mut().enumerate() {
+        let u: f64 = rng.random_range(-1.0..=1.0);
+        let mut d = normal[i].normalize_or_zero() * (u * amplitude);
+        for k in 0..3 {
+            if fixed[i][k] {
+                d[k] = 0.0;
             }
         }
-        for (i, e) in verts[li].iter().enumerate() {
-            let u: f64 = rng.random_range(-1.0..=1.0);
-            let mut d = normal[i].normalize_or_zero() * (u * amplitude);
-            for k in 0..3 {
-                if fixed[li][i][k] {
-                    d[k] = 0.0;
-                }
-            }
-            if let Some(mut pos) = world.get_mut::<Position>(*e) {
-                pos.0 += d;
-            }
-        }
+        *p += d;
     }
 }

@@ -50,6 +50,18 @@ pub struct Elements {
     pub springs: Vec<SpringElem>,
 }
 
+impl Elements {
+    /// Sum of the elements' energies at unit strain (stiffness x volume): the scale of the
+    /// round-off in an energy evaluation, whose densities cancel O(1) terms to O(strain^2).
+    pub fn energy_scale(&self, length: f64) -> f64 {
+        let m: f64 = self.membranes.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum();
+        let t: f64 = self.tets.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum();
+        let h: f64 = self.hinges.iter().map(|e| e.rest.weight).sum();
+        let s: f64 = self.springs.iter().map(|e| e.k * length * length).sum();
+        m + t + h + s
+    }
+}
+
 /// One patch's packed problem (a component on the patch entity).
 #[derive(Component, Default)]
 pub struct SolverBody {

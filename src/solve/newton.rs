@@ -16,6 +16,10 @@ const ARMIJO: f64 = 1e-4;
 const MAX_HALVINGS: u32 = 40;
 /// Adaptive projection: below this relative residual the exact Hessian is tried.
 const ADAPTIVE_SWITCH: f64 = 1e-3;
+/// Round-off band of an energy sum, relative to its elements' energy at unit strain.
+const ROUND_OFF: f64 = 1e-13;
+/// Iterations without progress that signal the round-off floor.
+const STALL: usize = 4;
 
 /// What happened in one frame's solve.
 #[derive(Clone, Debug, Default)]
@@ -88,12 +92,14 @@ fn newton(
     let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &body.mass, inv_h2: 1.0 / (dt * dt) });
     let total = |parts: &[f64; 4], x: &[DVec3]| parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
+    let energy_scale = body.elements.energy_scale(body.length_scale);
     let mut grad = vec![0.0; n];
     let mut values = vec![0.0; pattern.nnz()];
     let mut dx = vec![0.0; n];
     let mut out = FrameOutcome::default();
     let mut residual = f64::INFINITY;
     let mut force_exact = false;
+    let mut history: Vec<f64> = Vec::new();
 
     loop {
         let filter = match settings.projection {
@@ -128,6 +134,13 @@ fn newton(
         out.parts = parts;
         out.residual = residual;
         if n == 0 || residual <= settings.tolerance {
+            out.converged = true;
+            break;
+        }
+        // At the round-off floor the residual stops falling: within 1000x of the tolerance
+        // and no progress over the last STALL iterations counts as converged.
+        history.push(residual);
+        if history.len() > STALL && residual <= 1e3 * settings.tolerance && residual >= 0.5 * history[history.len() - 1 - STALL] {
             out.converged = true;
             break;
         }
@@ -179,16 +192,22 @@ fn newton(
         let x0 = body.x.clone();
         let mut alpha = 1.0;
         let mut accepted = false;
-        for _ in 0..MAX_HALVINGS {
+        // Near the solution the decrease can fall below the energy's round-off: there a full
+        // Newton step is accepted if the energy stays within that band.
+        let noise = ROUND_OFF * energy_scale;
+        for i in 0..MAX_HALVINGS {
             step(&mut body.x, &x0, &pattern.dof, &dx, alpha);
             let trial = total(&energy(&body.elements, &body.x), &body.x);
-            if trial.is_finite() && trial <= phi + ARMIJO * alpha * slope {
+            let armijo = trial <= phi + ARMIJO * alpha * slope;
+            let flat = i == 0 && residual < ADAPTIVE_SWITCH && trial <= phi + noise;
+            if trial.is_finite() && (armijo || flat) {
                 accepted = true;
                 break;
             }
             alpha *= 0.5;
         }
         out.iterations += 1;
+        tracing::debug!(iteration = out.iterations, residual, ?filter, alpha, slope, phi, accepted, "newton");
         if !accepted {
             out.line_search_failures += 1;
             body.x.copy_from_slice(&x0);

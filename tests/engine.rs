@@ -1,0 +1,158 @@
+//! System-level tests of the engine: the schedule, several patches in one world, determinism,
+//! failure handling and the Rerun recording. Each builds a World from a scene.
+
+mod common;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::hash::{Hash, Hasher};
+
+use bevy_ecs::prelude::*;
+use common::*;
+use skinsim::model::{Position, Stage};
+use skinsim::scene::{load_str, BuiltScene};
+use skinsim_systems::log::{ObjExport, RerunSink};
+use skinsim_systems::{Simulation, StageSet};
+
+/// Records which stage sets ran, in order (the bevy_ecs schedule-test pattern).
+#[derive(Resource, Default)]
+struct Ran(Vec<Stage>);
+
+fn record_stages(sim: &mut Simulation) {
+    sim.world.init_resource::<Ran>();
+    for stage in Stage::ALL {
+        sim.schedule.add_systems((move |mut ran: ResMut<Ran>| ran.0.push(stage)).in_set(StageSet(stage)));
+    }
+}
+
+const SHEET_WITHOUT_DRIVERS: &str = r#"
+Scene(name: "still", frames: 1, patches: [
+    Patch(name: "sheet", layers: [
+        Layer(name: "sheet", kind: Shell, mesh: Grid(size: (4.0, 4.0), cells: (4, 4)),
+              material: (young: 1.0, poisson: 0.3, thickness: 0.1)),
+    ]),
+])"#;
+
+#[test]
+fn stages_run_in_order_and_only_what_a_scene_declares() {
+    let mut sim = Simulation::new(&load("strip_wrinkles.ron"));
+    record_stages(&mut sim);
+    sim.step();
+    let all: Vec<Stage> = Stage::ALL.iter().copied().filter(|s| *s != Stage::Log).collect();
+    assert_eq!(sim.world.resource::<Ran>().0, all, "a scene with drivers and no sink skips only Log");
+
+    // No drivers: no BlendShapes work. A sink: the Log stage runs, last.
+    let scene = load_str(SHEET_WITHOUT_DRIVERS, &scene_path("still.ron")).unwrap();
+    let mut sim = Simulation::new(&scene);
+    record_stages(&mut sim);
+    let dir = std::env::temp_dir().join(format!("skinsim-stages-{}", std::process::id()));
+    sim.world.insert_resource(ObjExport(dir.clone()));
+    sim.step();
+    let ran = &sim.world.resource::<Ran>().0;
+    assert!(!ran.contains(&Stage::BlendShapes));
+    assert_eq!(ran.last(), Some(&Stage::Log));
+    assert!(dir.join("obj/sheet/sheet/00001.obj").is_file());
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+fn positions_hash(sim: &mut Simulation) -> u64 {
+    let mut q = sim.world.query::<(Entity, &Position)>();
+    let mut all: Vec<_> = q.iter(&sim.world).map(|(e, p)| (e.to_bits(), p.0.to_array().map(f64::to_bits))).collect();
+    all.sort();
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    all.hash(&mut h);
+    h.finish()
+}
+
+fn run_frames(scene: &BuiltScene, frames: u32) -> Simulation {
+    let mut sim = Simulation::new(scene);
+    for _ in 0..frames {
+        sim.step();
+        assert!(sim.failure().is_none());
+    }
+    sim
+}
+
+#[test]
+fn same_scene_same_bits_whatever_the_thread_count() {
+    let scene = load("strip_wrinkles.ron");
+    let hashes: Vec<u64> = [1, 2, 2]
+        .iter()
+        .map(|&n| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+            pool.install(|| positions_hash(&mut run_frames(&scene, 10)))
+        })
+        .collect();
+    assert_eq!(hashes[1], hashes[2], "two runs with 2 threads differ");
+    assert_eq!(hashes[0], hashes[1], "1 and 2 threads differ");
+}
+
+#[test]
+fn a_patch_gives_the_same_result_alone_and_beside_others() {
+    let mut both = load("multi_patch.ron");
+    both.scene.frames = 10;
+    assert!(both.patches.len() >= 2);
+    let mut together = run_frames(&both, 10);
+    for p in &both.patches {
+        let mut alone_scene = both.clone();
+        alone_scene.patches.retain(|q| q.name == p.name);
+        let mut alone = run_frames(&alone_scene, 10);
+        for layer in &p.layers {
+            let a = alone.layer_positions(&p.name, &layer.name);
+            let b = together.layer_positions(&p.name, &layer.name);
+            assert!(!a.is_empty());
+            assert_eq!(a, b, "patch {} layer {} differs beside other patches", p.name, layer.name);
+        }
+    }
+    // The two patches really wrinkled (they are not trivially equal to their rest state).
+    let film = together.layer_positions("stiff_foundation", "film");
+    assert!(film.iter().any(|p| p.z.abs() > 1e-5), "no wrinkles");
+}
+
+#[test]
+fn a_non_finite_state_stops_the_run_and_names_the_frame_and_patch() {
+    let mut sim = Simulation::new(&load("strip_wrinkles.ron"));
+    sim.step();
+    assert!(sim.failure().is_none());
+    let mut q = sim.world.query::<&mut Position>();
+    if let Some(mut p) = q.iter_mut(&mut sim.world).nth(1000) {
+        p.0.z = f64::NAN;
+    }
+    let stats = sim.step();
+    let failure = sim.failure().expect("the NaN is reported");
+    assert!(failure.contains("frame 2") && failure.contains("\"strip\""), "{failure}");
+    assert!(!stats.patches[0].converged);
+}
+
+#[test]
+fn the_recording_holds_every_layer_and_frame() {
+    let mut scene = load("strip_wrinkles.ron");
+    scene.scene.frames = 3;
+    let path = std::env::temp_dir().join(format!("skinsim-rec-{}.rrd", std::process::id()));
+    {
+        let rec = rerun::RecordingStreamBuilder::new("skinsim").recording_id("test").save(&path).unwrap();
+        let mut sim = Simulation::new(&scene);
+        sim.world.insert_resource(RerunSink(rec.clone()));
+        for _ in 0..3 {
+            sim.step();
+        }
+        rec.flush_blocking().unwrap();
+    }
+    // Read it back with Rerun's own decoder.
+    let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
+    let decoder = rerun::external::re_log_encoding::DecoderApp::decode_eager(file).unwrap();
+    let mut frames: BTreeMap<String, BTreeSet<i64>> = BTreeMap::new();
+    for msg in decoder {
+        if let rerun::log::LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
+            let chunk = rerun::log::Chunk::from_arrow_msg(&arrow).unwrap();
+            let entry = frames.entry(chunk.entity_path().to_string()).or_default();
+            if let Some(col) = chunk.timelines().get(&"frame".into()) {
+                entry.extend(col.times_raw().iter().copied());
+            }
+        }
+    }
+    let _ = std::fs::remove_file(&path);
+    for entity in ["/patches/strip/film", "/patches/strip/base", "/stats/strip/energy", "/timings/solve"] {
+        let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
+        assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2, 3], "{entity}");
+    }
+}
