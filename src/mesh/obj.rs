@@ -10,6 +10,7 @@ use super::SurfaceMesh;
 /// Loads a triangle surface. Positions are multiplied by `to_metres`; material coordinates come
 /// from `vt` (scaled the same way) or, without texture coordinates, from the rest xy.
 pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, String> {
+    unreferenced_vertex(path)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
     let (models, _) = tobj::load_obj(path, &opts).map_err(|e| e.to_string())?;
     let mut m = SurfaceMesh::default();
@@ -32,6 +33,36 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, String> {
         m.faces.extend(mesh.indices.chunks_exact(3).map(|f| [f[0] + base, f[1] + base, f[2] + base]));
     }
     Ok(m)
+}
+
+/// tobj drops vertices no face uses; a mesh with such vertices is refused, so scan for them.
+fn unreferenced_vertex(path: &Path) -> Result<(), String> {
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    let mut count = 0usize;
+    let mut used = Vec::new();
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                count += 1;
+                used.push(false);
+            }
+            Some("f") => {
+                for tok in it {
+                    let Some(Ok(i)) = tok.split('/').next().map(str::parse::<i64>) else { continue };
+                    let idx = if i < 0 { count as i64 + i } else { i - 1 };
+                    if let Some(u) = usize::try_from(idx).ok().and_then(|k| used.get_mut(k)) {
+                        *u = true;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    match used.iter().position(|u| !u) {
+        Some(v) => Err(format!("vertex {v} (line of the {}th `v`) is not used by any face", v + 1)),
+        None => Ok(()),
+    }
 }
 
 /// Writes positions (m) as `v`, material coordinates (m) as `vt`, and faces `f v/vt`.

@@ -20,6 +20,8 @@ const ADAPTIVE_SWITCH: f64 = 1e-3;
 const ROUND_OFF: f64 = 1e-13;
 /// Iterations without progress that signal the round-off floor.
 const STALL: usize = 4;
+/// Smallest force scale, relative to the elements' forces at unit strain.
+const FORCE_FLOOR: f64 = 1e-6;
 
 /// What happened in one frame's solve.
 #[derive(Clone, Debug, Default)]
@@ -129,7 +131,10 @@ fn newton(
         if !phi.is_finite() || !gnorm.is_finite() {
             return Err(format!("non-finite {} after {} Newton iterations", if phi.is_finite() { "gradient" } else { "energy" }, out.iterations));
         }
-        residual = if force_scale > 0.0 { (gnorm / force_scale).max(0.0) } else { 0.0 };
+        // Forces are measured against the internal forces, but never against less than those
+        // of a 1e-6 strain: an unloaded patch has only round-off forces and is converged.
+        let reference = force_scale.max(FORCE_FLOOR * energy_scale / body.length_scale.max(f64::MIN_POSITIVE));
+        residual = if reference > 0.0 { (gnorm / reference).max(0.0) } else { 0.0 };
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;

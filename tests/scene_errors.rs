@@ -1,0 +1,166 @@
+//! Bad input: every error names the file and the line and column or the field, and none panics.
+//! (Exit status 2 for these is tested on the binary in tools/tests/cli.rs.)
+
+use std::path::{Path, PathBuf};
+
+use skinsim::scene::{load, load_str, SceneError};
+
+const GOOD: &str = r#"Scene(
+    name: "good",
+    frames: 2,
+    patches: [
+        Patch(
+            name: "p",
+            layers: [
+                Layer(name: "base", kind: Kinematic, mesh: Grid(size: (4.0, 2.0), cells: (4, 2))),
+                Layer(name: "film", kind: Shell, mesh: Grid(size: (4.0, 2.0), cells: (4, 2)),
+                      material: (young: 1.0, poisson: 0.3, thickness: 0.1), bending: (model: Tan)),
+            ],
+            drivers: [
+                Compress(layers: ["base"], keyframes: [(0, 0.0), (2, 0.01)]),
+                Attach(layer: "film", to: "base", stiffness: 0.01),
+            ],
+        ),
+    ],
+)"#;
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("skinsim-errors-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn err(text: &str) -> SceneError {
+    load_str(text, Path::new("scene.ron")).expect_err("should be refused")
+}
+
+fn assert_mentions(e: &SceneError, words: &[&str]) {
+    let msg = e.to_string();
+    for w in words {
+        assert!(msg.contains(w), "{msg:?} does not mention {w:?}");
+    }
+}
+
+#[test]
+fn the_reference_scene_is_valid() {
+    load_str(GOOD, Path::new("scene.ron")).unwrap();
+}
+
+#[test]
+fn malformed_ron_names_line_and_column() {
+    let e = err(&GOOD.replace("frames: 2,", "frames: 2,,"));
+    assert_eq!(e.position.map(|p| p.0), Some(3), "{e}");
+    assert_mentions(&e, &["scene.ron:3:"]);
+}
+
+#[test]
+fn unknown_field_is_refused_with_its_position() {
+    let e = err(&GOOD.replace("poisson: 0.3,", "poisson: 0.3, stiffnes: 2.0,"));
+    assert!(e.position.is_some());
+    assert_mentions(&e, &["stiffnes"]);
+}
+
+#[test]
+fn empty_scene() {
+    let e = err(r#"Scene(name: "e", frames: 1, patches: [])"#);
+    assert_mentions(&e, &["patches", "empty"]);
+}
+
+#[test]
+fn bad_material_values_name_the_field() {
+    for (from, to, field) in [
+        ("thickness: 0.1", "thickness: 0.0", "material.thickness"),
+        ("thickness: 0.1", "thickness: -0.1", "material.thickness"),
+        ("young: 1.0", "young: 0.0", "material.young"),
+        ("young: 1.0", "young: -3.0", "material.young"),
+        ("poisson: 0.3", "poisson: 0.5", "material.poisson"),
+        ("poisson: 0.3", "poisson: -1.0", "material.poisson"),
+    ] {
+        let e = err(&GOOD.replace(from, to));
+        assert_mentions(&e, &[field, "\"film\""]);
+        assert!(e.field.is_some());
+    }
+}
+
+#[test]
+fn keyframes_out_of_order() {
+    let e = err(&GOOD.replace("[(0, 0.0), (2, 0.01)]", "[(2, 0.01), (1, 0.0)]"));
+    assert_mentions(&e, &["keyframes[1]", "out of order"]);
+}
+
+#[test]
+fn unknown_layer_in_a_driver() {
+    let e = err(&GOOD.replace("layers: [\"base\"]", "layers: [\"bsae\"]"));
+    assert_mentions(&e, &["drivers[0]", "bsae"]);
+}
+
+#[test]
+fn missing_mesh_file_names_the_file() {
+    let e = err(&GOOD.replace("mesh: Grid(size: (4.0, 2.0), cells: (4, 2)),\n                      material", "mesh: Obj(path: \"nowhere.obj\"),\n                      material"));
+    assert_mentions(&e, &["nowhere.obj", "not found"]);
+}
+
+fn obj_scene(name: &str, obj: &str) -> SceneError {
+    let d = dir();
+    std::fs::write(d.join(format!("{name}.obj")), obj).unwrap();
+    let text = format!(
+        r#"Scene(name: "{name}", frames: 1, patches: [Patch(name: "p", layers: [
+            Layer(name: "skin", kind: Shell, mesh: Obj(path: "{name}.obj"), material: (young: 1.0, poisson: 0.3, thickness: 0.1)),
+        ])])"#
+    );
+    let path = d.join(format!("{name}.ron"));
+    std::fs::write(&path, text).unwrap();
+    let e = load(&path).expect_err("bad mesh");
+    assert!(e.file.ends_with(format!("{name}.obj")), "{e}");
+    e
+}
+
+const QUAD: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+
+#[test]
+fn bad_meshes_are_refused() {
+    assert_mentions(&obj_scene("degenerate", &format!("{QUAD}f 1 2 3\nf 1 3 3\n")), &["degenerate"]);
+    assert_mentions(&obj_scene("duplicate", &format!("{QUAD}f 1 2 3\nf 1 3 4\nf 3 1 2\n")), &["same three vertices"]);
+    assert_mentions(&obj_scene("nonmanifold", &format!("{QUAD}v 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 3 5\n")), &["non-manifold"]);
+    assert_mentions(&obj_scene("unreferenced", &format!("{QUAD}v 5 5 5\nf 1 2 3\nf 1 3 4\n")), &["vertex 4", "not used"]);
+    // A valid OBJ loads.
+    let d = dir();
+    std::fs::write(d.join("ok.obj"), format!("{QUAD}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")).unwrap();
+    std::fs::write(
+        d.join("ok.ron"),
+        r#"Scene(name: "ok", frames: 1, patches: [Patch(name: "p", layers: [
+            Layer(name: "skin", kind: Shell, mesh: Obj(path: "ok.obj"), material: (young: 1.0, poisson: 0.3, thickness: 0.1)),
+        ])])"#,
+    )
+    .unwrap();
+    let s = load(&d.join("ok.ron")).unwrap();
+    assert_eq!(s.patches[0].layers[0].mesh.rest().len(), 4);
+}
+
+#[test]
+fn zero_elements_through_a_thickness() {
+    let e = err(r#"Scene(name: "s", frames: 1, patches: [Patch(name: "p", layers: [
+        Layer(name: "dermis", kind: Volume, mesh: TetSlab(size: (2.0, 2.0), cells: (2, 2), depth: 1.0, elements: 0),
+              material: (young: 0.01, poisson: 0.45)),
+    ])])"#);
+    assert_mentions(&e, &["mesh.elements", "zero elements"]);
+}
+
+#[test]
+fn every_shipped_scene_is_valid() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut n = 0;
+    let mut stack = vec![root];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(d).unwrap() {
+            let p = entry.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|e| e == "ron") {
+                load(&p).unwrap_or_else(|e| panic!("{e}"));
+                n += 1;
+            }
+        }
+    }
+    assert!(n >= 6);
+}

@@ -1,0 +1,110 @@
+//! The `skinsim` binary: exit statuses (0 success, 1 simulation failure, 2 bad input), outputs
+//! and that a failure keeps every earlier frame.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn skinsim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_skinsim"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("skinsim-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn scene(young: &str, frames: u32) -> String {
+    format!(
+        r#"Scene(name: "cli", frames: {frames}, patches: [Patch(name: "sheet",
+            solver: (projection: Adaptive, perturbation: (amplitude: 0.001, seed: 1)),
+            layers: [
+                Layer(name: "base", kind: Kinematic, mesh: Grid(size: (8.0, 2.0), cells: (16, 4))),
+                Layer(name: "film", kind: Shell, mesh: Grid(size: (8.0, 2.0), cells: (16, 4)),
+                      material: (young: {young}, poisson: 0.3, thickness: 0.1), bending: (model: Tan)),
+            ],
+            drivers: [
+                Compress(layers: ["base", "film"], keyframes: [(2, 0.0), (4, 0.05)]),
+                Attach(layer: "film", to: "base", stiffness: 0.0056),
+            ],
+        )])"#
+    )
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn check_accepts_good_and_refuses_bad_input_with_status_2() {
+    let d = scratch("check");
+    let good = write(&d, "good.ron", &scene("10.0", 4));
+    let out = skinsim().arg("check").arg(&good).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let bad = write(&d, "bad.ron", &scene("10.0", 4).replace("poisson: 0.3", "poisson: 0.7"));
+    for cmd in ["check", "run"] {
+        let out = skinsim().arg(cmd).arg(&bad).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd}: {err}");
+        assert!(err.contains("bad.ron") && err.contains("material.poisson"), "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    let malformed = write(&d, "malformed.ron", "Scene(name: \"x\",\n frames: 1,\n patches: [ Patch(name: ]");
+    let out = skinsim().arg("check").arg(&malformed).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(err.contains("malformed.ron:3:"), "{err}");
+    let out = skinsim().arg("run").arg(d.join("missing.ron")).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn run_writes_stats_recording_and_obj() {
+    let d = scratch("run");
+    let s = write(&d, "s.ron", &scene("10.0", 4));
+    let out = skinsim().args(["run", "--quiet", "--export", "obj", "--threads", "2", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stats = std::fs::read_to_string(d.join("out/stats.jsonl")).unwrap();
+    let lines: Vec<serde_json::Value> = stats.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 4);
+    let last = &lines[3];
+    assert_eq!(last["frame"], 4);
+    let p = &last["patches"][0];
+    for key in ["name", "vertices", "faces", "tets", "newton_iterations", "converged", "residual", "energy"] {
+        assert!(!p[key].is_null(), "missing {key}");
+    }
+    assert_eq!(p["converged"], true);
+    for key in ["blend_shapes", "remesh", "property_resample", "constraint_resample", "constraint_adjust", "anchor_walk", "assemble", "solve", "writeback", "log", "total"] {
+        assert!(last["timings_ms"][key].is_number(), "missing timing {key}");
+    }
+    assert!(d.join("out/recording.rrd").metadata().unwrap().len() > 1000);
+    let obj = std::fs::read_to_string(d.join("out/obj/sheet/film/00004.obj")).unwrap();
+    // An equilateral 16 x 4 grid: 17 + 18 + 17 + 18 + 17 vertices.
+    assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), 87);
+    assert!(obj.lines().any(|l| l.starts_with("vt ")) && obj.lines().any(|l| l.starts_with("f ")));
+    // Positions are in metres: the 8 mm sheet is 0.008 wide.
+    let max_x = obj.lines().filter(|l| l.starts_with("v ")).map(|l| l.split_whitespace().nth(1).unwrap().parse::<f64>().unwrap()).fold(0.0, f64::max);
+    assert!(max_x > 0.007 && max_x < 0.0081, "{max_x}");
+}
+
+#[test]
+fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
+    let d = scratch("fail");
+    // A modulus this large overflows the forces as soon as the compression starts (frame 3).
+    let s = write(&d, "s.ron", &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"));
+    let out = skinsim().args(["run", "--quiet", "--no-rerun", "--export", "obj", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("frame 3") && err.contains("\"sheet\""), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let stats = std::fs::read_to_string(d.join("out/stats.jsonl")).unwrap();
+    let lines: Vec<serde_json::Value> = stats.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 3);
+    assert_eq!(lines[0]["patches"][0]["converged"], true);
+    assert_eq!(lines[1]["patches"][0]["converged"], true);
+    assert_eq!(lines[2]["patches"][0]["converged"], false);
+    assert!(d.join("out/obj/sheet/film/00002.obj").is_file());
+}
