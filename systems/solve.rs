@@ -40,6 +40,7 @@ pub fn solve_patches(
                 energy_springs: o.parts[3],
                 regularized: o.regularized,
                 line_search_failures: o.line_search_failures,
+                solve_breakdown_ms: o.counters,
             }),
             Err(reason) => {
                 if failure.0.is_none() {

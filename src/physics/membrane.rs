@@ -83,8 +83,65 @@ pub fn eval(
     let psi = membrane_psi(model, lame, &fd);
     let p = psi.v1.unwrap_generic(nalgebra::U1, nalgebra::Const::<6>);
     let mut hf = psi.v2.unwrap_generic(nalgebra::Const::<6>, nalgebra::Const::<6>);
-    project(&mut hf, filter);
+    if filter != Filter::Exact && !project_in_triangle_frame(&mut hf, &f, filter) {
+        project(&mut hf, filter);
+    }
     chain_to_vertices::<6, 2, 3, 9>(rest.volume, psi.re, &p.transpose(), &hf, &coefficients(&rest.b))
+}
+
+/// Projects the F-Hessian of an energy of C = F^T F in the frame of the deformed triangle.
+/// With F = T A (T the triangle's tangent basis, n its normal), dC does not depend on the normal
+/// part n db^T of dF, and dF^T dF has no cross term, so the Hessian splits into an in-plane 4x4
+/// block and a normal 2x2 block (2 S, S the second Piola-Kirchhoff stress: negative under
+/// compression): each is projected on its own. Returns false for a degenerate triangle.
+fn project_in_triangle_frame(hf: &mut SMatrix<f64, 6, 6>, f: &[f64; 6], filter: Filter) -> bool {
+    let f1 = DVec3::new(f[0], f[1], f[2]);
+    let f2 = DVec3::new(f[3], f[4], f[5]);
+    let n = f1.cross(f2);
+    let (l1, ln) = (f1.length(), n.length());
+    if !(ln > 1e-12 * l1 * f2.length()) {
+        return false;
+    }
+    let t1 = f1 / l1;
+    let nn = n / ln;
+    let t2 = nn.cross(t1);
+    let q = nalgebra::Matrix3::from_columns(&[
+        nalgebra::Vector3::new(t1.x, t1.y, t1.z),
+        nalgebra::Vector3::new(t2.x, t2.y, t2.z),
+        nalgebra::Vector3::new(nn.x, nn.y, nn.z),
+    ]);
+    // Local Hessian: each 3x3 block (column j of F, column l of F) becomes Q^T B Q.
+    let mut local = SMatrix::<f64, 6, 6>::zeros();
+    for j in 0..2 {
+        for l in 0..2 {
+            let b: nalgebra::Matrix3<f64> = hf.fixed_view::<3, 3>(3 * j, 3 * l).into_owned();
+            local.fixed_view_mut::<3, 3>(3 * j, 3 * l).copy_from(&(q.transpose() * b * q));
+        }
+    }
+    const IN_PLANE: [usize; 4] = [0, 1, 3, 4];
+    const NORMAL: [usize; 2] = [2, 5];
+    let mut a = SMatrix::<f64, 4, 4>::from_fn(|r, c| local[(IN_PLANE[r], IN_PLANE[c])]);
+    let mut b = SMatrix::<f64, 2, 2>::from_fn(|r, c| local[(NORMAL[r], NORMAL[c])]);
+    project(&mut a, filter);
+    project(&mut b, filter);
+    local.fill(0.0);
+    for r in 0..4 {
+        for c in 0..4 {
+            local[(IN_PLANE[r], IN_PLANE[c])] = a[(r, c)];
+        }
+    }
+    for r in 0..2 {
+        for c in 0..2 {
+            local[(NORMAL[r], NORMAL[c])] = b[(r, c)];
+        }
+    }
+    for j in 0..2 {
+        for l in 0..2 {
+            let b: nalgebra::Matrix3<f64> = local.fixed_view::<3, 3>(3 * j, 3 * l).into_owned();
+            hf.fixed_view_mut::<3, 3>(3 * j, 3 * l).copy_from(&(q * b * q.transpose()));
+        }
+    }
+    true
 }
 
 /// Maps dPsi/dF and d2Psi/dF2 (F with NC columns of 3) to vertex gradient and Hessian through

@@ -66,7 +66,7 @@ macro_rules! impl_project {
     )*};
 }
 
-impl_project!(4, 6, 9, 12);
+impl_project!(2, 4, 6, 9, 12);
 
 /// Projects `h` in place (see [`Project`]).
 pub fn project<M: Project>(h: &mut M, filter: Filter) {

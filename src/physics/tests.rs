@@ -289,3 +289,32 @@ fn a4_projected_element_hessians_are_psd() {
         }
     }
 }
+
+/// The in-plane / normal split of the membrane projection equals a full 6x6 projection.
+#[test]
+fn a4_membrane_block_projection_matches_full_projection() {
+    use super::psd::project;
+    let lame = Lame::plane_stress(1e6, 0.45);
+    let tri = [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 0.8e-3, 0.0)];
+    let rest = MembraneRest::from_rest_triangle(tri, 1e-4, DMat2::IDENTITY).unwrap();
+    let q = DQuat::from_euler(glam::EulerRot::XYZ, 0.4, 0.2, -0.9);
+    for (sx, sy) in [(0.5, 0.9), (0.7, 1.2), (1.1, 0.6), (0.4, 0.4)] {
+        let x = tri.map(|p| q * DVec3::new(p.x * sx, p.y * sy + 0.1 * p.x, 0.0));
+        for model in MEMBRANE_MODELS {
+            for filter in [Filter::Clamp, Filter::Abs] {
+                let (_, _, h) = membrane::eval(model, lame, &rest, &x, filter);
+                // Reference: project the exact element Hessian's F-level matrix in full.
+                let (_, _, exact) = membrane::eval(model, lame, &rest, &x, Filter::Exact);
+                let mut full = exact;
+                project(&mut full, filter);
+                let (lo, hi) = {
+                    let e = SymmetricEigen::new(DMatrix::from_column_slice(9, 9, h.as_slice())).eigenvalues;
+                    (e.min(), e.amax())
+                };
+                assert!(lo >= -1e-10 * hi, "{model:?} {filter:?}: {lo:e}");
+                // Same spectrum magnitude as projecting the exact Hessian directly.
+                assert!((h.norm() - full.norm()).abs() < 0.5 * full.norm(), "{model:?} {filter:?}");
+            }
+        }
+    }
+}

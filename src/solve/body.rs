@@ -107,3 +107,47 @@ impl SolverBody {
         }
     }
 }
+
+impl SolverBody {
+    /// A body for one shell layer built straight from a mesh, without a World (benchmarks and
+    /// bare-pipeline tests). `fixed` chooses the held coordinates from the rest position.
+    pub fn from_shell(
+        mesh: &crate::mesh::SurfaceMesh,
+        model: ConstitutiveModel,
+        lame: Lame,
+        thickness: f64,
+        bending: Option<(HingeModel, f64)>,
+        fixed: impl Fn(DVec3) -> [bool; 3],
+    ) -> SolverBody {
+        let n = mesh.rest.len();
+        let mut el = Elements::default();
+        for f in &mesh.faces {
+            let rest = MembraneRest::from_rest_triangle(f.map(|i| mesh.rest[i as usize]), thickness, glam::DMat2::IDENTITY)
+                .expect("valid triangle");
+            el.membranes.push(MembraneElem { v: *f, rest, model, lame });
+        }
+        if let Some((hinge_model, k_b)) = bending {
+            for e in crate::mesh::edges(&mesh.faces).into_iter().filter(|e| e.is_interior()) {
+                let v = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]];
+                let rest = HingeRest::from_rest(hinge_model, k_b, v.map(|i| mesh.rest[i as usize]));
+                el.hinges.push(HingeElem { v, rest, model: hinge_model });
+            }
+        }
+        let (lo, hi) = mesh.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        SolverBody {
+            topology_key: 0,
+            vertices: Vec::new(),
+            x: mesh.rest.clone(),
+            v: vec![DVec3::ZERO; n],
+            mass: vec![0.0; n],
+            fixed: mesh.rest.iter().map(|p| fixed(*p)).collect(),
+            tie: (0..n as u32).map(|i| (i, [false; 3])).collect(),
+            face_count: mesh.faces.len(),
+            tet_count: 0,
+            length_scale: (hi - lo).length(),
+            elements: el,
+            system: None,
+            report: Default::default(),
+        }
+    }
+}

@@ -30,7 +30,12 @@ impl CholeskySolver {
     pub fn analyze(p: &Pattern) -> Self {
         let par = if p.n >= PARALLEL_MIN_DOFS { Par::rayon(rayon::current_num_threads()) } else { Par::Seq };
         let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
-        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
+        let mut inverse = vec![0u32; p.n];
+        for (k, &d) in p.order.iter().enumerate() {
+            inverse[d as usize] = k as u32;
+        }
+        let perm = faer::perm::PermRef::new_checked(&p.order, &inverse, p.n);
+        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), CholeskySymbolicParams::default())
             .expect("symbolic Cholesky of a valid pattern");
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
@@ -74,5 +79,10 @@ impl CholeskySolver {
 
     pub fn factor_nnz(&self) -> usize {
         self.l_values.len()
+    }
+
+    /// Whether faer chose the supernodal (blocked, parallel) factorization.
+    pub fn is_supernodal(&self) -> bool {
+        matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
     }
 }

@@ -5,7 +5,8 @@ pub mod body;
 pub mod eval;
 pub mod linear;
 pub mod newton;
+pub mod ordering;
 pub mod pattern;
 
 pub use body::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
-pub use newton::{solve_frame, FrameOutcome};
+pub use newton::{solve_frame, FrameOutcome, SolveCounters};

@@ -33,6 +33,17 @@ pub struct FrameOutcome {
     pub parts: [f64; 4],
     pub regularized: u32,
     pub line_search_failures: u32,
+    /// Wall time inside the solve (ms): element evaluation and assembly, numeric
+    /// factorization and triangular solves, line-search energy evaluations.
+    pub counters: SolveCounters,
+}
+
+/// Per-frame timers inside Newton (rapier's `counters`).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct SolveCounters {
+    pub assemble_ms: f64,
+    pub factorize_ms: f64,
+    pub line_search_ms: f64,
 }
 
 /// The incremental potential's inertia term: sum m / (2 h^2) |x - x_hat|^2 (LK14 eq. 5.2).
@@ -54,7 +65,7 @@ pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Res
     let (pattern, mut chol) = match body.system.take() {
         Some(system) => system,
         None => {
-            let p = Pattern::build(&body.fixed, &body.tie, &body.elements);
+            let p = Pattern::build(&body.x, &body.fixed, &body.tie, &body.elements);
             let s = CholeskySolver::analyze(&p);
             (p, s)
         }
@@ -112,7 +123,9 @@ fn newton(
             Projection::Adaptive => Filter::Clamp,
         };
         force_exact = false;
+        let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } = assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
+        out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
         if let Some(inr) = &inertia {
             for (v, ((x, xh), m)) in body.x.iter().zip(inr.x_hat).zip(inr.mass).enumerate() {
                 let f = (*x - *xh) * (m * inr.inv_h2);
@@ -153,7 +166,10 @@ fn newton(
             break;
         }
         // Search direction: H dx = -g, shifting the diagonal if H is not positive definite.
-        if chol.factorize(pattern, &values).is_err() {
+        let clock = std::time::Instant::now();
+        let factorized = chol.factorize(pattern, &values);
+        out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+        if factorized.is_err() {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
                 residual = f64::INFINITY; // H15: fall back to the projected Hessian
                 continue;
@@ -179,7 +195,9 @@ fn newton(
         for (d, g) in dx.iter_mut().zip(&grad) {
             *d = -g;
         }
+        let clock = std::time::Instant::now();
         chol.solve(&mut dx);
+        out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
         if !(slope < 0.0) {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
@@ -194,6 +212,7 @@ fn newton(
         }
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
         // Armijo backtracking on the total potential.
+        let clock = std::time::Instant::now();
         let x0 = body.x.clone();
         let mut alpha = 1.0;
         let mut accepted = false;
@@ -211,6 +230,7 @@ fn newton(
             }
             alpha *= 0.5;
         }
+        out.counters.line_search_ms += clock.elapsed().as_secs_f64() * 1e3;
         out.iterations += 1;
         tracing::debug!(iteration = out.iterations, residual, ?filter, alpha, slope, phi, accepted, "newton");
         if !accepted {

@@ -23,6 +23,9 @@ pub struct Pattern {
     pub hinges: Vec<u32>,
     pub tets: Vec<u32>,
     pub springs: Vec<u32>,
+    /// Elimination order of the free DOFs (nested dissection of the vertices): order[k] is
+    /// the DOF eliminated k-th.
+    pub order: Vec<u32>,
 }
 
 /// Number of stored local pairs of an element with `nv` vertices.
@@ -34,7 +37,7 @@ pub const fn pairs(nv: usize) -> usize {
 impl Pattern {
     /// `tie[v] = (m, dofs)`: coordinates `dofs` of v share vertex m's DOFs (m < v; m = v
     /// when untied).
-    pub fn build(fixed: &[[bool; 3]], tie: &[(u32, [bool; 3])], elements: &Elements) -> Pattern {
+    pub fn build(points: &[glam::DVec3], fixed: &[[bool; 3]], tie: &[(u32, [bool; 3])], elements: &Elements) -> Pattern {
         let nv = fixed.len();
         let mut dof = vec![NONE; 3 * nv];
         let mut n = 0u32;
@@ -106,6 +109,24 @@ impl Pattern {
                 col_ptr.push(row_idx.len() as u32);
             }
         }
+        // Symmetric vertex graph for the ordering.
+        let mut sym: Vec<Vec<u32>> = adj.clone();
+        for (v, a) in adj.iter().enumerate() {
+            for &u in a {
+                if u as usize != v {
+                    sym[u as usize].push(v as u32);
+                }
+            }
+        }
+        let mut order = Vec::with_capacity(n as usize);
+        for v in super::ordering::nested_dissection(points, &sym) {
+            for k in 0..3 {
+                let d = dof[3 * v as usize + k];
+                if d != NONE && owned(v as usize, k) {
+                    order.push(d);
+                }
+            }
+        }
         let mut p = Pattern {
             dof,
             n: n as usize,
@@ -116,6 +137,7 @@ impl Pattern {
             hinges: Vec::new(),
             tets: Vec::new(),
             springs: Vec::new(),
+            order,
         };
         p.membranes = elements.membranes.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.hinges = elements.hinges.iter().flat_map(|e| p.element_map(&e.v)).collect();
