@@ -5,7 +5,9 @@
 
 use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
-use num_dual::{DualNum, DualSVec64};
+use num_dual::DualNum;
+
+use super::dual::{Dual, Real};
 use serde::{Deserialize, Serialize};
 
 use super::psd::{project, Filter};
@@ -84,7 +86,10 @@ pub fn dihedral<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> D {
 /// Marino, Fedkiw 2003): the opposite vertices move along their face normals over the heights,
 /// the edge vertices by the projections of the opposite vertices on the edge. Generic so that
 /// first-order AD of it gives the exact Hessian.
-pub fn dihedral_gradient<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
+pub fn dihedral_gradient<D: Real>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
+    let sub = |a: [D; 3], b: [D; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [D; 3], b: [D; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let cross = |a: [D; 3], b: [D; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
     let e = sub(x[1], x[0]);
     let l = dot(e, e).sqrt();
     let na = cross(e, sub(x[2], x[0]));
@@ -110,6 +115,51 @@ pub fn dihedral_f64(x: &[DVec3; 4]) -> f64 {
     dihedral(&x.map(|v| v.to_array()))
 }
 
+/// Orthonormal basis (Helmert) of the vectors of R^4 orthogonal to (1, 1, 1, 1).
+const HELMERT: [[f64; 3]; 4] = {
+    const A: f64 = std::f64::consts::FRAC_1_SQRT_2;
+    const B: f64 = 0.408_248_290_463_863; // 1 / sqrt(6)
+    const C: f64 = 0.288_675_134_594_812_9; // 1 / sqrt(12)
+    [[A, B, C], [-A, B, C], [0.0, -2.0 * B, C], [0.0, 0.0, -3.0 * C]]
+};
+
+/// Projects a 12x12 element Hessian that annihilates translations (every hinge Hessian does)
+/// in the 9-dimensional complement of the translations: with Q = Helmert (x) I3 orthonormal,
+/// H = Q (Q^T H Q) Q^T exactly, so projecting the 9x9 middle is the same projection.
+fn project_without_translations(h: &mut SMatrix<f64, 12, 12>, filter: Filter) {
+    let block = |m: &SMatrix<f64, 12, 12>, i: usize, j: usize| -> nalgebra::Matrix3<f64> { m.fixed_view::<3, 3>(3 * i, 3 * j).into_owned() };
+    let mut r = SMatrix::<f64, 9, 9>::zeros();
+    for a in 0..3 {
+        for b in 0..3 {
+            let mut acc = nalgebra::Matrix3::zeros();
+            for i in 0..4 {
+                for j in 0..4 {
+                    let c = HELMERT[i][a] * HELMERT[j][b];
+                    if c != 0.0 {
+                        acc += block(h, i, j) * c;
+                    }
+                }
+            }
+            r.fixed_view_mut::<3, 3>(3 * a, 3 * b).copy_from(&acc);
+        }
+    }
+    project(&mut r, filter);
+    for i in 0..4 {
+        for j in 0..4 {
+            let mut acc = nalgebra::Matrix3::zeros();
+            for a in 0..3 {
+                for b in 0..3 {
+                    let c = HELMERT[i][a] * HELMERT[j][b];
+                    if c != 0.0 {
+                        acc += r.fixed_view::<3, 3>(3 * a, 3 * b) * c;
+                    }
+                }
+            }
+            h.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&acc);
+        }
+    }
+}
+
 /// Energy only.
 pub fn energy(model: HingeModel, rest: &HingeRest, x: &[DVec3; 4]) -> f64 {
     let d = model.phi(dihedral_f64(x)).0 - rest.rest_phi;
@@ -123,8 +173,7 @@ pub fn eval(
     x: &[DVec3; 4],
     filter: Filter,
 ) -> (f64, SVector<f64, 12>, SMatrix<f64, 12, 12>) {
-    let xd: [[DualSVec64<12>; 3]; 4] =
-        std::array::from_fn(|v| std::array::from_fn(|k| DualSVec64::from_re(x[v][k]).derivative(3 * v + k)));
+    let xd: [[Dual<12>; 3]; 4] = std::array::from_fn(|v| std::array::from_fn(|k| Dual::variable(x[v][k], 3 * v + k)));
     let gd = dihedral_gradient(&xd);
     let mut gt = SVector::<f64, 12>::zeros();
     let mut ht = SMatrix::<f64, 12, 12>::zeros();
@@ -132,9 +181,8 @@ pub fn eval(
         for k in 0..3 {
             let g = &gd[v][k];
             gt[3 * v + k] = g.re;
-            let row = g.eps.clone().unwrap_generic(nalgebra::Const::<12>, nalgebra::U1);
             for j in 0..12 {
-                ht[(3 * v + k, j)] = row[j];
+                ht[(3 * v + k, j)] = g.eps[j];
             }
         }
     }
@@ -145,6 +193,8 @@ pub fn eval(
     let w1 = 2.0 * rest.weight * d * d1;
     let w2 = 2.0 * rest.weight * (d1 * d1 + d * d2);
     let mut h = gt * gt.transpose() * w2 + ht * w1;
-    project(&mut h, filter);
+    if filter != Filter::Exact {
+        project_without_translations(&mut h, filter);
+    }
     (rest.weight * d * d, gt * w1, h)
 }

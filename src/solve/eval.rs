@@ -107,20 +107,24 @@ impl Scatter<'_> {
         let np = pairs(NV);
         debug_assert_eq!(map.len(), elems.len() * np);
         let mut energy = 0.0;
-        let mut pending: Option<(usize, Vec<Local<N>>)> = None;
+        // Two result buffers, reused: one being filled while the other is scattered.
+        let mut filling: Vec<Local<N>> = Vec::with_capacity(CHUNK.min(elems.len()));
+        let mut ready: Vec<Local<N>> = Vec::with_capacity(CHUNK.min(elems.len()));
+        let mut ready_start: Option<usize> = None;
         for (ci, chunk) in elems.chunks(CHUNK).enumerate() {
-            let (cur, ()) = rayon::join(
-                || chunk.par_iter().map(&eval).collect::<Vec<_>>(),
+            rayon::join(
+                || chunk.par_iter().map(&eval).collect_into_vec(&mut filling),
                 || {
-                    if let Some((start, res)) = pending.take() {
-                        energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &res);
+                    if let Some(start) = ready_start {
+                        energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &ready);
                     }
                 },
             );
-            pending = Some((ci * CHUNK, cur));
+            std::mem::swap(&mut filling, &mut ready);
+            ready_start = Some(ci * CHUNK);
         }
-        if let Some((start, res)) = pending.take() {
-            energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &res);
+        if let Some(start) = ready_start {
+            energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &ready);
         }
         energy
     }

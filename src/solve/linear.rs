@@ -13,6 +13,9 @@ use super::pattern::Pattern;
 
 /// Below this many DOFs the factorization runs sequentially (faster on small matrices).
 pub const PARALLEL_MIN_DOFS: usize = 20_000;
+/// From this many DOFs nested dissection orders the factorization; below, AMD (measured:
+/// 37 vs 62 ms per frame on the 4.4k-DOF default scene; about 5 % less fill at 100k DOFs).
+pub const NESTED_DISSECTION_MIN_DOFS: usize = 50_000;
 
 pub struct CholeskySolver {
     symbolic: SymbolicCholesky<u32>,
@@ -35,7 +38,8 @@ impl CholeskySolver {
             inverse[d as usize] = k as u32;
         }
         let perm = faer::perm::PermRef::new_checked(&p.order, &inverse, p.n);
-        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), CholeskySymbolicParams::default())
+        let ordering = if p.n >= NESTED_DISSECTION_MIN_DOFS { SymmetricOrdering::Custom(perm) } else { SymmetricOrdering::Amd };
+        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ordering, CholeskySymbolicParams::default())
             .expect("symbolic Cholesky of a valid pattern");
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
