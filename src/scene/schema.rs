@@ -110,7 +110,7 @@ pub enum SolveMode {
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "Solver")]
 pub struct SolverSpec {
     #[serde(default)]
     pub mode: SolveMode,
@@ -194,7 +194,7 @@ pub enum MeshSpec {
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "Material")]
 pub struct MaterialSpec {
     #[serde(default)]
     pub model: ConstitutiveModel,
@@ -214,7 +214,7 @@ fn default_density() -> f64 {
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "Bending")]
 pub struct BendingSpec {
     #[serde(default)]
     pub model: HingeModel,
@@ -325,7 +325,7 @@ fn axis_y() -> Axis {
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, rename = "Output")]
 pub struct OutputSpec {
     /// stats.jsonl
     #[serde(default = "default_true")]
