@@ -318,3 +318,29 @@ fn a4_membrane_block_projection_matches_full_projection() {
         }
     }
 }
+
+/// A1 and A2 for zero-length springs: gradient against central differences of the energy,
+/// rigid invariance and no force at rest.
+#[test]
+fn a1_a2_springs() {
+    use super::spring;
+    let k = 3.7e2;
+    let (a, b) = (DVec3::new(1e-3, -2e-3, 0.5e-3), DVec3::new(-0.4e-3, 1e-3, 2e-3));
+    let g = spring::gradient(k, a, b);
+    for i in 0..3 {
+        let mut best = f64::INFINITY;
+        for p in 4..=8 {
+            let h = 10f64.powi(-p) * 1e-3;
+            let (mut ap, mut am) = (a, a);
+            ap[i] += h;
+            am[i] -= h;
+            let fd = (spring::energy(k, ap, b) - spring::energy(k, am, b)) / (2.0 * h);
+            best = best.min((fd - g[i]).abs() / g.length());
+        }
+        assert!(best < 1e-6, "component {i}: {best:e}");
+    }
+    let (q, t) = random_rigid(3);
+    let e0 = spring::energy(k, a, b);
+    assert!((spring::energy(k, q * a + t, q * b + t) - e0).abs() < 1e-12 * e0);
+    assert_eq!(spring::gradient(k, a, a), DVec3::ZERO);
+}
