@@ -55,7 +55,8 @@ fn bench(c: &mut Criterion) {
     }
     g.finish();
 
-    let tet4 = [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 1e-3, 0.0), DVec3::new(0.2e-3, 0.3e-3, 1e-3)];
+    let tet4 =
+        [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 1e-3, 0.0), DVec3::new(0.2e-3, 0.3e-3, 1e-3)];
     let trest = TetRest::from_rest(tet4, DMat3::IDENTITY).unwrap();
     let tets: Vec<[DVec3; 4]> = (0..64)
         .map(|i| {

@@ -31,7 +31,10 @@ pub fn film(dofs: usize) -> SolverBody {
         Lame::plane_stress(young, 0.3),
         h,
         Some((HingeModel::Tan, d / 6.0)),
-        |p| { let held = p.x <= 1e-12 || p.x >= 0.02 - 1e-12; [held; 3] },
+        |p| {
+            let held = p.x <= 1e-12 || p.x >= 0.02 - 1e-12;
+            [held; 3]
+        },
     );
     for p in body.x.iter_mut() {
         p.x = 0.01 + (p.x - 0.01) * 0.99;
@@ -75,7 +78,10 @@ fn bench(c: &mut Criterion) {
     g.finish();
     if let Ok(status) = std::fs::read_to_string("/proc/self/status") {
         if let Some(line) = status.lines().find(|l| l.starts_with("VmHWM")) {
-            println!("peak memory of this benchmark process (up to 200k DOFs): {}", line.trim_start_matches("VmHWM:").trim());
+            println!(
+                "peak memory of this benchmark process (up to 200k DOFs): {}",
+                line.trim_start_matches("VmHWM:").trim()
+            );
         }
     }
     let _ = DVec3::ZERO;

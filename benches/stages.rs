@@ -6,9 +6,9 @@ use skinsim_systems::Simulation;
 
 fn main() {
     let arg = std::env::args().skip(1).find(|a| a.ends_with(".ron"));
-    let path = arg.map(std::path::PathBuf::from).unwrap_or_else(|| {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/strip_wrinkles.ron")
-    });
+    let path = arg
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/strip_wrinkles.ron"));
     let scene = skinsim::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     let mut sim = Simulation::new(&scene);
     let mut totals = [0.0f64; 10];
@@ -29,7 +29,13 @@ fn main() {
         }
     }
     let frames = scene.scene.frames as f64;
-    println!("{}: {} frames, {:.1} ms/frame, {:.1} Newton iterations/frame", path.display(), frames, total / frames, iterations as f64 / frames);
+    println!(
+        "{}: {} frames, {:.1} ms/frame, {:.1} Newton iterations/frame",
+        path.display(),
+        frames,
+        total / frames,
+        iterations as f64 / frames
+    );
     println!("{:<22}{:>12}{:>10}", "stage", "ms/frame", "share");
     for stage in Stage::ALL {
         let t = totals[stage as usize];

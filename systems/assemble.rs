@@ -131,7 +131,12 @@ fn rebuild(
             if let (LayerKind::Shell, Some(m)) = (layer.kind, material) {
                 for &f in lf.entities() {
                     if let Ok((fv, Some(rest))) = faces.get(f) {
-                        el.membranes.push(MembraneElem { v: fv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame: m.lame });
+                        el.membranes.push(MembraneElem {
+                            v: fv.0.map(|e| idx(&e)),
+                            rest: rest.0,
+                            model: m.model,
+                            lame: m.lame,
+                        });
                     }
                 }
             }

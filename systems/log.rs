@@ -68,13 +68,15 @@ pub fn log_frame(
             if rm.tris.is_empty() {
                 continue;
             }
-            let pos: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.0 .0).unwrap_or(DVec3::NAN)).collect();
+            let pos: Vec<DVec3> =
+                rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.0 .0).unwrap_or(DVec3::NAN)).collect();
             if let Some(rec) = rec {
                 let path = format!("patches/{}/{}", patch.name, layer.name);
                 log_mesh(rec, &path, rm, &pos);
             }
             if let Some(ObjExport(dir)) = obj.as_deref() {
-                let uv: Vec<DVec2> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
+                let uv: Vec<DVec2> =
+                    rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
                 let folder = dir.join("obj").join(&patch.name).join(&layer.name);
                 let file = folder.join(format!("{:05}.obj", clock.frame));
                 let res = std::fs::create_dir_all(&folder).and_then(|_| mesh::obj::write(&file, &pos, &uv, &rm.tris));
@@ -177,7 +179,11 @@ fn log_mesh(rec: &rerun::RecordingStream, path: &str, rm: &mut RenderMesh, pos: 
     }
     let f3 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
     if !rm.logged_topology {
-        let _ = rec.log_static(path, &rerun::Mesh3D::update_fields().with_triangle_indices(rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t))));
+        let _ = rec.log_static(
+            path,
+            &rerun::Mesh3D::update_fields()
+                .with_triangle_indices(rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t))),
+        );
         rm.logged_topology = true;
     }
     let colours: Vec<rerun::Color> = strain

@@ -6,7 +6,7 @@ use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
 use skinsim::model::{PatchMotion, Stage, Timings};
 
-use crate::log::{wants_logging, log_frame};
+use crate::log::{log_frame, wants_logging};
 use crate::{assemble, blend_shapes, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
@@ -43,12 +43,11 @@ pub fn build_schedule() -> Schedule {
 }
 
 /// A stage's systems between two timer systems that record its wall time in `Timings`.
-fn timed<M>(stage: Stage, systems: impl IntoScheduleConfigs<bevy_ecs::system::ScheduleSystem, M>) -> bevy_ecs::schedule::ScheduleConfigs<bevy_ecs::system::ScheduleSystem> {
-    (
-        |mut t: ResMut<Timings>| t.begin(),
-        systems,
-        move |mut t: ResMut<Timings>| t.end(stage),
-    )
+fn timed<M>(
+    stage: Stage,
+    systems: impl IntoScheduleConfigs<bevy_ecs::system::ScheduleSystem, M>,
+) -> bevy_ecs::schedule::ScheduleConfigs<bevy_ecs::system::ScheduleSystem> {
+    (|mut t: ResMut<Timings>| t.begin(), systems, move |mut t: ResMut<Timings>| t.end(stage))
         .chain()
         .in_set(StageSet(stage))
 }

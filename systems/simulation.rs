@@ -53,7 +53,12 @@ impl Simulation {
             timings_ms.insert(stage.key().into(), timings.get(stage).into());
         }
         timings_ms.insert("total".into(), total.into());
-        FrameStats { frame: clock.frame, time: clock.time, patches: self.world.resource::<FrameReport>().patches.clone(), timings_ms }
+        FrameStats {
+            frame: clock.frame,
+            time: clock.time,
+            patches: self.world.resource::<FrameReport>().patches.clone(),
+            timings_ms,
+        }
     }
 
     /// Why the simulation failed, if it did.

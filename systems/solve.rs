@@ -46,7 +46,16 @@ pub fn solve_patches(
                 if failure.0.is_none() {
                     failure.0 = Some(format!("frame {}: patch \"{name}\": {reason}", clock.frame));
                 }
-                report.patches.push(PatchReport { name, vertices, faces, tets, converged: false, residual: f64::NAN, energy: f64::NAN, ..Default::default() });
+                report.patches.push(PatchReport {
+                    name,
+                    vertices,
+                    faces,
+                    tets,
+                    converged: false,
+                    residual: f64::NAN,
+                    energy: f64::NAN,
+                    ..Default::default()
+                });
             }
         }
     }

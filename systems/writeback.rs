@@ -4,7 +4,11 @@ use bevy_ecs::prelude::*;
 use skinsim::model::*;
 use skinsim::solve::SolverBody;
 
-pub fn scatter_bodies(bodies: Query<&SolverBody>, mut vertices: Query<(&mut Position, &mut Velocity)>, failure: Res<SimFailure>) {
+pub fn scatter_bodies(
+    bodies: Query<&SolverBody>,
+    mut vertices: Query<(&mut Position, &mut Velocity)>,
+    failure: Res<SimFailure>,
+) {
     if failure.0.is_some() {
         return; // keep the last good state
     }

@@ -96,7 +96,10 @@ fn unknown_layer_in_a_driver() {
 
 #[test]
 fn missing_mesh_file_names_the_file() {
-    let e = err(&GOOD.replace("mesh: Grid(size: (4.0, 2.0), cells: (4, 2)),\n                      material", "mesh: Obj(path: \"nowhere.obj\"),\n                      material"));
+    let e = err(&GOOD.replace(
+        "mesh: Grid(size: (4.0, 2.0), cells: (4, 2)),\n                      material",
+        "mesh: Obj(path: \"nowhere.obj\"),\n                      material",
+    ));
     assert_mentions(&e, &["nowhere.obj", "not found"]);
 }
 
@@ -121,11 +124,18 @@ const QUAD: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
 fn bad_meshes_are_refused() {
     assert_mentions(&obj_scene("degenerate", &format!("{QUAD}f 1 2 3\nf 1 3 3\n")), &["degenerate"]);
     assert_mentions(&obj_scene("duplicate", &format!("{QUAD}f 1 2 3\nf 1 3 4\nf 3 1 2\n")), &["same three vertices"]);
-    assert_mentions(&obj_scene("nonmanifold", &format!("{QUAD}v 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 3 5\n")), &["non-manifold"]);
-    assert_mentions(&obj_scene("unreferenced", &format!("{QUAD}v 5 5 5\nf 1 2 3\nf 1 3 4\n")), &["vertex 4", "not used"]);
+    assert_mentions(
+        &obj_scene("nonmanifold", &format!("{QUAD}v 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 3 5\n")),
+        &["non-manifold"],
+    );
+    assert_mentions(
+        &obj_scene("unreferenced", &format!("{QUAD}v 5 5 5\nf 1 2 3\nf 1 3 4\n")),
+        &["vertex 4", "not used"],
+    );
     // A valid OBJ loads.
     let d = dir();
-    std::fs::write(d.join("ok.obj"), format!("{QUAD}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")).unwrap();
+    std::fs::write(d.join("ok.obj"), format!("{QUAD}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"))
+        .unwrap();
     std::fs::write(
         d.join("ok.ron"),
         r#"Scene(name: "ok", frames: 1, patches: [Patch(name: "p", layers: [

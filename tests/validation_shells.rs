@@ -5,8 +5,8 @@ mod common;
 
 use common::*;
 use glam::DVec3;
-use skinsim::physics::hinge;
 use skinsim::model::RestPos;
+use skinsim::physics::hinge;
 use skinsim::scene::build::{BuiltDriver, LayerMesh};
 use skinsim::solve::eval::vertex_gradient;
 use skinsim::solve::SolverBody;
@@ -90,7 +90,10 @@ fn case5_cylinder_bending_energy() {
     let rt = load("validation/cylinder_righttriangle.ron");
     for axis in [0, 1] {
         let err = cylinder_error(rt.clone(), axis, 0.0);
-        println!("case 5: right-triangle mesh, cylinder axis {axis}: error {:+.3} % (mesh-dependent, reported)", 100.0 * err);
+        println!(
+            "case 5: right-triangle mesh, cylinder axis {axis}: error {:+.3} % (mesh-dependent, reported)",
+            100.0 * err
+        );
         assert!(err > -0.30 && err < 0.05, "right-triangle hinge error outside the documented range: {err}");
     }
     let err = cylinder_error(eq, 1, 0.25);
@@ -143,7 +146,8 @@ fn strip_measures(sim: &mut skinsim_systems::Simulation) -> (f64, f64, f64) {
     // Every vertex whose x is held on the x-max half carries part of the end force.
     let held: Vec<bool> = body.fixed.iter().map(|f| f[0]).collect();
     let mid = 0.5 * (lo.x + hi.x);
-    let force: f64 = rest.iter().zip(&g).zip(&held).filter(|((p, _), h)| **h && p.x > mid).map(|((_, g), _)| -g.x).sum();
+    let force: f64 =
+        rest.iter().zip(&g).zip(&held).filter(|((p, _), h)| **h && p.x > mid).map(|((_, g), _)| -g.x).sum();
     let width = hi.y - lo.y;
     let deflection = body.x.iter().map(|p| p.z.abs()).fold(0.0, f64::max);
     (force / width, deflection, hi.x - lo.x)

@@ -18,7 +18,9 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, String> {
         let mesh = model.mesh;
         let base = m.rest.len() as u32;
         let nv = mesh.positions.len() / 3;
-        m.rest.extend(mesh.positions.chunks_exact(3).map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * to_metres));
+        m.rest.extend(
+            mesh.positions.chunks_exact(3).map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * to_metres),
+        );
         let mut uv: Vec<Option<DVec2>> = vec![None; nv];
         if !mesh.texcoords.is_empty() && mesh.texcoord_indices.len() == mesh.indices.len() {
             for (vi, ti) in mesh.indices.iter().zip(&mesh.texcoord_indices) {

@@ -80,7 +80,11 @@ pub fn check_surface(m: &SurfaceMesh) -> Result<(), MeshError> {
         }
         let (a, b, c) = (m.rest[f[0] as usize], m.rest[f[1] as usize], m.rest[f[2] as usize]);
         let scale = (b - a).length_squared().max((c - a).length_squared());
-        if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] || (b - a).cross(c - a).length_squared() <= 1e-24 * scale * scale {
+        if f[0] == f[1]
+            || f[1] == f[2]
+            || f[0] == f[2]
+            || (b - a).cross(c - a).length_squared() <= 1e-24 * scale * scale
+        {
             return Err(MeshError::Degenerate { face: fi });
         }
         let mut key = *f;
@@ -122,7 +126,7 @@ pub fn surface_of_tets(tets: &[[u32; 4]]) -> Vec<[u32; 3]> {
             e.0 += 1;
         }
     }
-    order.into_iter().filter_map(|k| (count[&k].0 == 1).then(|| count[&k].1)).collect()
+    order.into_iter().filter(|k| count[k].0 == 1).map(|k| count[&k].1).collect()
 }
 
 #[cfg(test)]

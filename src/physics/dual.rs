@@ -5,7 +5,15 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// The arithmetic the hinge gradient needs, for f64 and for dual numbers.
-pub trait Real: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self> + Mul<f64, Output = Self> {
+pub trait Real:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + Mul<f64, Output = Self>
+{
     fn sqrt(self) -> Self;
     fn recip(self) -> Self;
 }
@@ -56,6 +64,7 @@ impl<const N: usize> Sub for Dual<N> {
         Dual { re: self.re - o.re, eps: std::array::from_fn(|i| self.eps[i] - o.eps[i]) }
     }
 }
+#[allow(clippy::suspicious_arithmetic_impl)] // the product rule
 impl<const N: usize> Mul for Dual<N> {
     type Output = Self;
     #[inline]
@@ -63,6 +72,7 @@ impl<const N: usize> Mul for Dual<N> {
         Dual { re: self.re * o.re, eps: std::array::from_fn(|i| self.eps[i] * o.re + o.eps[i] * self.re) }
     }
 }
+#[allow(clippy::suspicious_arithmetic_impl)] // a / b = a (1 / b)
 impl<const N: usize> Div for Dual<N> {
     type Output = Self;
     #[inline]

@@ -89,7 +89,8 @@ pub fn dihedral<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> D {
 pub fn dihedral_gradient<D: Real>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
     let sub = |a: [D; 3], b: [D; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     let dot = |a: [D; 3], b: [D; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let cross = |a: [D; 3], b: [D; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    let cross =
+        |a: [D; 3], b: [D; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
     let e = sub(x[1], x[0]);
     let l = dot(e, e).sqrt();
     let na = cross(e, sub(x[2], x[0]));
@@ -126,8 +127,11 @@ const HELMERT: [[f64; 3]; 4] = {
 /// Projects a 12x12 element Hessian that annihilates translations (every hinge Hessian does)
 /// in the 9-dimensional complement of the translations: with Q = Helmert (x) I3 orthonormal,
 /// H = Q (Q^T H Q) Q^T exactly, so projecting the 9x9 middle is the same projection.
+#[allow(clippy::needless_range_loop)] // index arithmetic mirrors the formula
 fn project_without_translations(h: &mut SMatrix<f64, 12, 12>, filter: Filter) {
-    let block = |m: &SMatrix<f64, 12, 12>, i: usize, j: usize| -> nalgebra::Matrix3<f64> { m.fixed_view::<3, 3>(3 * i, 3 * j).into_owned() };
+    let block = |m: &SMatrix<f64, 12, 12>, i: usize, j: usize| -> nalgebra::Matrix3<f64> {
+        m.fixed_view::<3, 3>(3 * i, 3 * j).into_owned()
+    };
     let mut r = SMatrix::<f64, 9, 9>::zeros();
     for a in 0..3 {
         for b in 0..3 {

@@ -13,10 +13,7 @@ pub struct Lame {
 impl Lame {
     /// Plane-stress parameters of a thin membrane (PHYSICS.md 1.1): the 3D lambda would lock.
     pub fn plane_stress(young: f64, poisson: f64) -> Self {
-        Lame {
-            mu: young / (2.0 * (1.0 + poisson)),
-            lambda: young * poisson / (1.0 - poisson * poisson),
-        }
+        Lame { mu: young / (2.0 * (1.0 + poisson)), lambda: young * poisson / (1.0 - poisson * poisson) }
     }
     /// Three-dimensional parameters of a solid.
     pub fn solid(young: f64, poisson: f64) -> Self {
@@ -109,8 +106,8 @@ pub fn solid_psi<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, l
     let c23 = dot(&b, &c);
     let tr_c = c11 + c22 + c33;
     // det F = a . (b x c)
-    let j = a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2])
-        + a[2] * (b[0] * c[1] - b[1] * c[0]);
+    let j =
+        a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
     let (mu, la) = (lame.mu, lame.lambda);
     match model {
         ConstitutiveModel::BazantHencky => {

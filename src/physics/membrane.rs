@@ -99,7 +99,8 @@ fn project_in_triangle_frame(hf: &mut SMatrix<f64, 6, 6>, f: &[f64; 6], filter: 
     let f2 = DVec3::new(f[3], f[4], f[5]);
     let n = f1.cross(f2);
     let (l1, ln) = (f1.length(), n.length());
-    if !(ln > 1e-12 * l1 * f2.length()) {
+    // (NaN-safe: a NaN length counts as degenerate)
+    if ln.is_nan() || ln <= 1e-12 * l1 * f2.length() {
         return false;
     }
     let t1 = f1 / l1;

@@ -103,9 +103,8 @@ fn vec3() -> impl Strategy<Value = DVec3> {
 
 /// A rest triangle in mm: well shaped, or a sliver (aspect down to 1e-3).
 fn rest_triangle() -> impl Strategy<Value = [DVec3; 3]> {
-    (prop_oneof![Just(1.0), Just(1e-3)], 0.2f64..0.8).prop_map(|(aspect, s)| {
-        [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(s * 1e-3, aspect * 1e-3, 0.0)]
-    })
+    (prop_oneof![Just(1.0), Just(1e-3)], 0.2f64..0.8)
+        .prop_map(|(aspect, s)| [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(s * 1e-3, aspect * 1e-3, 0.0)])
 }
 
 /// Deformed configuration: the rest shape stretched or compressed (to 30 %), sheared and moved.
@@ -172,7 +171,8 @@ fn a2_rigid_invariance() {
     let lame_m = Lame::plane_stress(1e6, 0.3);
     let lame_s = Lame::solid(1e6, 0.3);
     let tri = [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 0.8e-3, 0.0)];
-    let tet4 = [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 1e-3, 0.0), DVec3::new(0.2e-3, 0.3e-3, 1e-3)];
+    let tet4 =
+        [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 1e-3, 0.0), DVec3::new(0.2e-3, 0.3e-3, 1e-3)];
     let quad = [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.4e-3, 1e-3, 0.0), DVec3::new(0.6e-3, -1e-3, 0.0)];
     for seed in 0..8 {
         let (q, t) = random_rigid(seed);
@@ -242,8 +242,10 @@ fn a3_linearization_matches_linear_elasticity() {
     }
     // Corotational solid: through the element (its F-Hessian is closed form).
     let rest = TetRest::from_rest([DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z], DMat3::IDENTITY).unwrap();
-    let (_, _, h) = tet::eval(M::Corotational, lame, &rest, &[DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z], Filter::Exact);
-    let (_, _, h_bh) = tet::eval(M::BazantHencky, lame, &rest, &[DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z], Filter::Exact);
+    let (_, _, h) =
+        tet::eval(M::Corotational, lame, &rest, &[DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z], Filter::Exact);
+    let (_, _, h_bh) =
+        tet::eval(M::BazantHencky, lame, &rest, &[DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z], Filter::Exact);
     assert!((h - h_bh).norm() < 1e-6 * h.norm(), "corotational linearization differs");
 }
 
@@ -277,7 +279,8 @@ fn a4_projected_element_hessians_are_psd() {
         assert!(lo >= -1e-10 * hi, "{model:?}: {lo:e}");
     }
     let lame = Lame::solid(1e4, 0.45);
-    let tet4 = [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 1e-3, 0.0), DVec3::new(0.2e-3, 0.3e-3, 1e-3)];
+    let tet4 =
+        [DVec3::ZERO, DVec3::new(1e-3, 0.0, 0.0), DVec3::new(0.3e-3, 1e-3, 0.0), DVec3::new(0.2e-3, 0.3e-3, 1e-3)];
     let rest = TetRest::from_rest(tet4, DMat3::IDENTITY).unwrap();
     let mut squashed = tet4;
     squashed[3] = DVec3::new(0.2e-3, 0.3e-3, 0.2e-3);

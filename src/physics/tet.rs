@@ -21,7 +21,7 @@ impl TetRest {
         let dm = DMat3::from_cols(x[1] - x[0], x[2] - x[0], x[3] - x[0]);
         let det = dm.determinant();
         let scale = (x[1] - x[0]).length().max((x[2] - x[0]).length()).max((x[3] - x[0]).length());
-        if !(det > 1e-12 * scale * scale * scale) {
+        if det.is_nan() || det <= 1e-12 * scale * scale * scale {
             return None;
         }
         Some(TetRest { b: dm.inverse() * f0, volume: det / 6.0 })

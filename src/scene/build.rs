@@ -55,13 +55,34 @@ pub struct BuiltLayer {
 /// Drivers with layer names resolved to indices and values in SI units.
 #[derive(Clone, Debug)]
 pub enum BuiltDriver {
-    Pin { layer: usize, vertices: Vec<u32>, dofs: [bool; 3] },
-    Compress { layers: Vec<usize>, axis: usize, keyframes: Vec<(u32, f64)>, predict: bool },
-    Bend { layers: Vec<usize>, axis: usize, keyframes: Vec<(u32, f64)> },
+    Pin {
+        layer: usize,
+        vertices: Vec<u32>,
+        dofs: [bool; 3],
+    },
+    Compress {
+        layers: Vec<usize>,
+        axis: usize,
+        keyframes: Vec<(u32, f64)>,
+        predict: bool,
+    },
+    Bend {
+        layers: Vec<usize>,
+        axis: usize,
+        keyframes: Vec<(u32, f64)>,
+    },
     /// Springs (vertex of `layer`, vertex of `to`, stiffness N/m).
-    Attach { layer: usize, to: usize, springs: Vec<(u32, u32, f64)> },
+    Attach {
+        layer: usize,
+        to: usize,
+        springs: Vec<(u32, u32, f64)>,
+    },
     /// Per layer: (vertex, master vertex) pairs whose in-plane coordinates are shared.
-    PlaneStrain { layers: Vec<usize>, axis: usize, ties: Vec<Vec<(u32, u32)>> },
+    PlaneStrain {
+        layers: Vec<usize>,
+        axis: usize,
+        ties: Vec<Vec<(u32, u32)>>,
+    },
 }
 
 /// Reads, validates and builds a scene file.
@@ -106,13 +127,18 @@ impl Builder {
             return Err(self.err("frames", "must be at least 1"));
         }
         if !(scene.frame_time > 0.0 && scene.frame_time.is_finite()) {
-            return Err(self.err("frame_time", format!("must be a positive number of seconds (got {})", scene.frame_time)));
+            return Err(
+                self.err("frame_time", format!("must be a positive number of seconds (got {})", scene.frame_time))
+            );
         }
         let mut names = HashMap::new();
         let mut patches = Vec::new();
         for (pi, p) in scene.patches.iter().enumerate() {
             if let Some(prev) = names.insert(p.name.clone(), pi) {
-                return Err(self.err(format!("patches[{pi}].name"), format!("\"{}\" is also the name of patches[{prev}]", p.name)));
+                return Err(self.err(
+                    format!("patches[{pi}].name"),
+                    format!("\"{}\" is also the name of patches[{prev}]", p.name),
+                ));
             }
             patches.push(self.patch(&scene, pi, p)?);
         }
@@ -127,7 +153,7 @@ impl Builder {
             return Err(self.err(format!("{at}.layers"), "a patch needs at least one layer"));
         }
         let s = &p.solver;
-        if !(s.tolerance > 0.0) {
+        if s.tolerance.is_nan() || s.tolerance <= 0.0 {
             return Err(self.err(format!("{at}.solver.tolerance"), format!("must be > 0 (got {})", s.tolerance)));
         }
         if s.max_iterations == 0 {
@@ -185,10 +211,17 @@ impl Builder {
                 DriverSpec::Compress { layers: ls, axis, keyframes, predict } => {
                     keyframes_ok(keyframes, "strain")?;
                     if let Some((i, _)) = keyframes.iter().enumerate().find(|(_, k)| k.1 >= 1.0) {
-                        return Err(self.err(format!("{dat}.keyframes[{i}]"), "a strain of 1 or more collapses the patch"));
+                        return Err(
+                            self.err(format!("{dat}.keyframes[{i}]"), "a strain of 1 or more collapses the patch")
+                        );
                     }
                     let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
-                    BuiltDriver::Compress { layers, axis: axis.index(), keyframes: keyframes.clone(), predict: *predict }
+                    BuiltDriver::Compress {
+                        layers,
+                        axis: axis.index(),
+                        keyframes: keyframes.clone(),
+                        predict: *predict,
+                    }
                 }
                 DriverSpec::Bend { layers: ls, axis, keyframes } => {
                     keyframes_ok(keyframes, "curvature")?;
@@ -200,8 +233,10 @@ impl Builder {
                     BuiltDriver::Bend { layers, axis: axis.index(), keyframes }
                 }
                 DriverSpec::PlaneStrain { layers: ls, axis } => {
-                    let layers_i: Vec<usize> = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
-                    let ties = layers_i.iter().map(|&li| plane_strain_ties(layers[li].mesh.rest(), axis.index())).collect();
+                    let layers_i: Vec<usize> =
+                        ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                    let ties =
+                        layers_i.iter().map(|&li| plane_strain_ties(layers[li].mesh.rest(), axis.index())).collect();
                     BuiltDriver::PlaneStrain { layers: layers_i, axis: axis.index(), ties }
                 }
                 DriverSpec::Attach { layer, to, stiffness } => {
@@ -223,30 +258,50 @@ impl Builder {
         let needs_material = l.kind != LayerKind::Kinematic;
         let (mut material, mut thickness) = (None, None);
         match (&l.material, needs_material) {
-            (None, true) => return Err(self.err(format!("{at}.material"), format!("a {:?} layer needs a material", l.kind))),
+            (None, true) => {
+                return Err(self.err(format!("{at}.material"), format!("a {:?} layer needs a material", l.kind)))
+            }
             (Some(m), true) => {
                 if !(m.young > 0.0 && m.young.is_finite()) {
-                    return Err(self.err(format!("{at}.material.young"), format!("Young's modulus must be > 0 (got {})", m.young)));
+                    return Err(self.err(
+                        format!("{at}.material.young"),
+                        format!("Young's modulus must be > 0 (got {})", m.young),
+                    ));
                 }
                 if !(m.poisson > -1.0 && m.poisson < 0.5) {
-                    return Err(self.err(format!("{at}.material.poisson"), format!("Poisson's ratio must be in (-1, 0.5) (got {})", m.poisson)));
+                    return Err(self.err(
+                        format!("{at}.material.poisson"),
+                        format!("Poisson's ratio must be in (-1, 0.5) (got {})", m.poisson),
+                    ));
                 }
                 if !(m.density > 0.0 && m.density.is_finite()) {
-                    return Err(self.err(format!("{at}.material.density"), format!("must be > 0 kg/m^3 (got {})", m.density)));
+                    return Err(
+                        self.err(format!("{at}.material.density"), format!("must be > 0 kg/m^3 (got {})", m.density))
+                    );
                 }
                 let young = m.young * stress;
                 let lame = match l.kind {
                     LayerKind::Shell => Lame::plane_stress(young, m.poisson),
                     _ => Lame::solid(young, m.poisson),
                 };
-                material = Some(crate::model::Material { model: m.model, young, poisson: m.poisson, density: m.density, lame });
+                material = Some(crate::model::Material {
+                    model: m.model,
+                    young,
+                    poisson: m.poisson,
+                    density: m.density,
+                    lame,
+                });
                 match (l.kind, m.thickness) {
-                    (LayerKind::Shell, None) => return Err(self.err(format!("{at}.material.thickness"), "a shell needs a thickness")),
+                    (LayerKind::Shell, None) => {
+                        return Err(self.err(format!("{at}.material.thickness"), "a shell needs a thickness"))
+                    }
                     (LayerKind::Shell, Some(h)) if !(h > 0.0 && h.is_finite()) => {
                         return Err(self.err(format!("{at}.material.thickness"), format!("must be > 0 (got {h})")))
                     }
                     (LayerKind::Shell, Some(h)) => thickness = Some(h * len),
-                    (_, Some(_)) => return Err(self.err(format!("{at}.material.thickness"), "only shells have a thickness")),
+                    (_, Some(_)) => {
+                        return Err(self.err(format!("{at}.material.thickness"), "only shells have a thickness"))
+                    }
                     _ => {}
                 }
             }
@@ -264,7 +319,9 @@ impl Builder {
                 let d = m.young * h.powi(3) / (12.0 * (1.0 - m.poisson * m.poisson));
                 Some(crate::model::Bending { model: b.model, stiffness: b.scale * d / 6.0 })
             }
-            (Some(_), kind) => return Err(self.err(format!("{at}.bending"), format!("only shells bend ({kind:?} layer)"))),
+            (Some(_), kind) => {
+                return Err(self.err(format!("{at}.bending"), format!("only shells bend ({kind:?} layer)")))
+            }
         };
         Ok(BuiltLayer { name: l.name.clone(), kind: l.kind, mesh, material, thickness, bending })
     }
@@ -303,7 +360,8 @@ impl Builder {
                 if *elements == 0 {
                     return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
                 }
-                let (m, _) = mesh::tet_slab(DVec2::new(size.0, size.1) * len, *cells, top * len, &[(depth * len, *elements)]);
+                let (m, _) =
+                    mesh::tet_slab(DVec2::new(size.0, size.1) * len, *cells, top * len, &[(depth * len, *elements)]);
                 LayerMesh::Volume(m)
             }
             MeshSpec::Obj { path } => {
@@ -312,7 +370,11 @@ impl Builder {
                 }
                 let full = self.dir.join(path);
                 if !full.is_file() {
-                    return Err(SceneError::at_field(&full, &field, format!("mesh file not found: {}", full.display())));
+                    return Err(SceneError::at_field(
+                        &full,
+                        &field,
+                        format!("mesh file not found: {}", full.display()),
+                    ));
                 }
                 let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e))?;
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
@@ -331,7 +393,13 @@ impl Builder {
 
     /// Pairs every vertex of `a` with the vertex of `b` at the same rest position in the plane
     /// (x, y), for attachment springs; stiffness per vertex = k_area x vertex area of `a`.
-    fn pair_layers(&self, at: &str, a: &BuiltLayer, b: &BuiltLayer, k_area: f64) -> Result<Vec<(u32, u32, f64)>, SceneError> {
+    fn pair_layers(
+        &self,
+        at: &str,
+        a: &BuiltLayer,
+        b: &BuiltLayer,
+        k_area: f64,
+    ) -> Result<Vec<(u32, u32, f64)>, SceneError> {
         let LayerMesh::Surface(ma) = &a.mesh else {
             return Err(self.err(format!("{at}.layer"), "attachment springs start from a surface layer"));
         };
@@ -358,7 +426,10 @@ impl Builder {
         let mut out = Vec::with_capacity(ma.rest.len());
         for (i, p) in ma.rest.iter().enumerate() {
             let j = lookup.get(&key(*p)).copied().ok_or_else(|| {
-                self.err(format!("{at}.to"), format!("vertex {i} of \"{}\" has no vertex of \"{}\" at the same (x, y)", a.name, b.name))
+                self.err(
+                    format!("{at}.to"),
+                    format!("vertex {i} of \"{}\" has no vertex of \"{}\" at the same (x, y)", a.name, b.name),
+                )
             })?;
             out.push((i as u32, j, k_area * area[i]));
         }
@@ -413,7 +484,8 @@ fn select_vertices(rest: &[DVec3], select: &Select, len: f64, offset: DVec3) -> 
                 Side::ZMax => p.z >= hi.z - tol,
             }),
             Select::Box { min, max } => {
-                let (a, b) = (DVec3::new(min.0, min.1, min.2) * len + offset, DVec3::new(max.0, max.1, max.2) * len + offset);
+                let (a, b) =
+                    (DVec3::new(min.0, min.1, min.2) * len + offset, DVec3::new(max.0, max.1, max.2) * len + offset);
                 p.cmpge(a - tol).all() && p.cmple(b + tol).all()
             }
         })

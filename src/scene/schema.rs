@@ -258,7 +258,10 @@ pub enum Select {
     /// Vertices on the given sides of the layer's bounding box.
     Sides(Vec<Side>),
     /// Vertices inside a box (length units).
-    Box { min: (f64, f64, f64), max: (f64, f64, f64) },
+    Box {
+        min: (f64, f64, f64),
+        max: (f64, f64, f64),
+    },
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]

@@ -25,11 +25,8 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     let patch = world.spawn((Patch { name: p.name.clone(), index }, SolverSettings(p.solver.clone()))).id();
     let mut layer_vertices: Vec<Vec<Entity>> = Vec::new();
     let mut layers = Vec::new();
-    let mut fixed: Vec<Vec<[bool; 3]>> = p
-        .layers
-        .iter()
-        .map(|l| vec![[l.kind == LayerKind::Kinematic; 3]; l.mesh.rest().len()])
-        .collect();
+    let mut fixed: Vec<Vec<[bool; 3]>> =
+        p.layers.iter().map(|l| vec![[l.kind == LayerKind::Kinematic; 3]; l.mesh.rest().len()]).collect();
     for d in &p.drivers {
         match d {
             BuiltDriver::Pin { layer, vertices, dofs } => {
@@ -79,7 +76,14 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                 let batch: Vec<_> = springs
                     .iter()
                     .map(|&(a, b, k)| {
-                        (Spring { a: layer_vertices[*layer][a as usize], b: layer_vertices[*to][b as usize], stiffness: k }, SpringOf(layers[*layer]))
+                        (
+                            Spring {
+                                a: layer_vertices[*layer][a as usize],
+                                b: layer_vertices[*to][b as usize],
+                                stiffness: k,
+                            },
+                            SpringOf(layers[*layer]),
+                        )
                     })
                     .collect();
                 world.spawn_batch(batch);
@@ -104,7 +108,13 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     patch
 }
 
-fn spawn_layer(world: &mut World, patch: Entity, l: &BuiltLayer, index: u32, fixed: &[[bool; 3]]) -> (Entity, Vec<Entity>) {
+fn spawn_layer(
+    world: &mut World,
+    patch: Entity,
+    l: &BuiltLayer,
+    index: u32,
+    fixed: &[[bool; 3]],
+) -> (Entity, Vec<Entity>) {
     let mut e = world.spawn((Layer { name: l.name.clone(), kind: l.kind, index }, LayerOf(patch), TopologyEpoch(0)));
     if let Some(m) = l.material {
         e.insert(m);
@@ -188,7 +198,8 @@ fn spawn_layer(world: &mut World, patch: Entity, l: &BuiltLayer, index: u32, fix
                 .tets
                 .iter()
                 .map(|t| {
-                    let rest = TetRest::from_rest(t.map(|i| m.rest[i as usize]), DMat3::IDENTITY).expect("generated tets are valid");
+                    let rest = TetRest::from_rest(t.map(|i| m.rest[i as usize]), DMat3::IDENTITY)
+                        .expect("generated tets are valid");
                     (TetVerts(t.map(|i| verts[i as usize])), TetOf(layer), TetRestShape(rest))
                 })
                 .collect();

@@ -97,11 +97,9 @@ impl SolverBody {
         for v in 0..self.x.len() {
             let (m, dofs) = self.tie[v];
             if m as usize != v {
-                for k in 0..3 {
-                    if dofs[k] {
-                        self.x[v][k] = self.x[m as usize][k];
-                        self.v[v][k] = self.v[m as usize][k];
-                    }
+                for (k, _) in dofs.iter().enumerate().filter(|(_, tied)| **tied) {
+                    self.x[v][k] = self.x[m as usize][k];
+                    self.v[v][k] = self.v[m as usize][k];
                 }
             }
         }
@@ -122,8 +120,9 @@ impl SolverBody {
         let n = mesh.rest.len();
         let mut el = Elements::default();
         for f in &mesh.faces {
-            let rest = MembraneRest::from_rest_triangle(f.map(|i| mesh.rest[i as usize]), thickness, glam::DMat2::IDENTITY)
-                .expect("valid triangle");
+            let rest =
+                MembraneRest::from_rest_triangle(f.map(|i| mesh.rest[i as usize]), thickness, glam::DMat2::IDENTITY)
+                    .expect("valid triangle");
             el.membranes.push(MembraneElem { v: *f, rest, model, lame });
         }
         if let Some((hinge_model, k_b)) = bending {
@@ -133,7 +132,8 @@ impl SolverBody {
                 el.hinges.push(HingeElem { v, rest, model: hinge_model });
             }
         }
-        let (lo, hi) = mesh.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let (lo, hi) =
+            mesh.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
         SolverBody {
             topology_key: 0,
             vertices: Vec::new(),

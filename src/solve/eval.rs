@@ -59,28 +59,42 @@ pub fn assemble(
     values.iter_mut().for_each(|v| *v = 0.0);
     let mut out = Assembly::default();
     let mut acc = Scatter { dof: &pattern.dof, grad, values, force: 0.0 };
-    out.parts[0] = acc.class::<_, 3, 9>(&el.membranes, &pattern.membranes, |e| e.v, |e| {
-        membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter)
-    });
-    out.parts[1] = acc.class::<_, 4, 12>(&el.hinges, &pattern.hinges, |e| e.v, |e| {
-        hinge::eval(e.model, &e.rest, &gather(x, &e.v), filter)
-    });
-    out.parts[2] = acc.class::<_, 4, 12>(&el.tets, &pattern.tets, |e| e.v, |e| {
-        tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter)
-    });
-    out.parts[3] = acc.class::<_, 2, 6>(&el.springs, &pattern.springs, |e| e.v, |e| {
-        let (a, b) = (x[e.v[0] as usize], x[e.v[1] as usize]);
-        let g = spring::gradient(e.k, a, b);
-        let gv = SVector::<f64, 6>::from_column_slice(&[g.x, g.y, g.z, -g.x, -g.y, -g.z]);
-        let mut h = SMatrix::<f64, 6, 6>::zeros();
-        for k in 0..3 {
-            h[(k, k)] = e.k;
-            h[(k + 3, k + 3)] = e.k;
-            h[(k, k + 3)] = -e.k;
-            h[(k + 3, k)] = -e.k;
-        }
-        (spring::energy(e.k, a, b), gv, h)
-    });
+    out.parts[0] = acc.class::<_, 3, 9>(
+        &el.membranes,
+        &pattern.membranes,
+        |e| e.v,
+        |e| membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
+    );
+    out.parts[1] = acc.class::<_, 4, 12>(
+        &el.hinges,
+        &pattern.hinges,
+        |e| e.v,
+        |e| hinge::eval(e.model, &e.rest, &gather(x, &e.v), filter),
+    );
+    out.parts[2] = acc.class::<_, 4, 12>(
+        &el.tets,
+        &pattern.tets,
+        |e| e.v,
+        |e| tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
+    );
+    out.parts[3] = acc.class::<_, 2, 6>(
+        &el.springs,
+        &pattern.springs,
+        |e| e.v,
+        |e| {
+            let (a, b) = (x[e.v[0] as usize], x[e.v[1] as usize]);
+            let g = spring::gradient(e.k, a, b);
+            let gv = SVector::<f64, 6>::from_column_slice(&[g.x, g.y, g.z, -g.x, -g.y, -g.z]);
+            let mut h = SMatrix::<f64, 6, 6>::zeros();
+            for k in 0..3 {
+                h[(k, k)] = e.k;
+                h[(k + 3, k + 3)] = e.k;
+                h[(k, k + 3)] = -e.k;
+                h[(k + 3, k)] = -e.k;
+            }
+            (spring::energy(e.k, a, b), gv, h)
+        },
+    );
     out.force_scale = acc.force;
     out
 }

@@ -38,7 +38,8 @@ impl CholeskySolver {
             inverse[d as usize] = k as u32;
         }
         let perm = faer::perm::PermRef::new_checked(&p.order, &inverse, p.n);
-        let ordering = if p.n >= NESTED_DISSECTION_MIN_DOFS { SymmetricOrdering::Custom(perm) } else { SymmetricOrdering::Amd };
+        let ordering =
+            if p.n >= NESTED_DISSECTION_MIN_DOFS { SymmetricOrdering::Custom(perm) } else { SymmetricOrdering::Amd };
         let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ordering, CholeskySymbolicParams::default())
             .expect("symbolic Cholesky of a valid pattern");
         let req = StackReq::any_of(&[

@@ -55,7 +55,11 @@ struct Inertia<'a> {
 
 impl Inertia<'_> {
     fn energy(&self, x: &[DVec3]) -> f64 {
-        x.iter().zip(self.x_hat).zip(self.mass).map(|((a, b), m)| 0.5 * m * self.inv_h2 * (*a - *b).length_squared()).sum()
+        x.iter()
+            .zip(self.x_hat)
+            .zip(self.mass)
+            .map(|((a, b), m)| 0.5 * m * self.inv_h2 * (*a - *b).length_squared())
+            .sum()
     }
 }
 
@@ -87,15 +91,19 @@ fn newton(
     let dynamic = settings.mode == SolveMode::ImplicitEuler;
     let x_n = body.x.clone();
     let x_hat: Vec<DVec3> = if dynamic {
-        x_n.iter().zip(&body.v).zip(&body.fixed).map(|((x, v), f)| {
-            let mut p = *x + *v * dt;
-            for k in 0..3 {
-                if f[k] {
-                    p[k] = x[k];
+        x_n.iter()
+            .zip(&body.v)
+            .zip(&body.fixed)
+            .map(|((x, v), f)| {
+                let mut p = *x + *v * dt;
+                for k in 0..3 {
+                    if f[k] {
+                        p[k] = x[k];
+                    }
                 }
-            }
-            p
-        }).collect()
+                p
+            })
+            .collect()
     } else {
         Vec::new()
     };
@@ -103,7 +111,8 @@ fn newton(
         body.x.copy_from_slice(&x_hat);
     }
     let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &body.mass, inv_h2: 1.0 / (dt * dt) });
-    let total = |parts: &[f64; 4], x: &[DVec3]| parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
+    let total =
+        |parts: &[f64; 4], x: &[DVec3]| parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
     let energy_scale = body.elements.energy_scale(body.length_scale);
     let mut grad = vec![0.0; n];
@@ -124,7 +133,8 @@ fn newton(
         };
         force_exact = false;
         let clock = std::time::Instant::now();
-        let Assembly { parts, mut force_scale } = assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
+        let Assembly { parts, mut force_scale } =
+            assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
         out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
         if let Some(inr) = &inertia {
             for (v, ((x, xh), m)) in body.x.iter().zip(inr.x_hat).zip(inr.mass).enumerate() {
@@ -142,7 +152,11 @@ fn newton(
         let phi = total(&parts, &body.x);
         let gnorm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
-            return Err(format!("non-finite {} after {} Newton iterations", if phi.is_finite() { "gradient" } else { "energy" }, out.iterations));
+            return Err(format!(
+                "non-finite {} after {} Newton iterations",
+                if phi.is_finite() { "gradient" } else { "energy" },
+                out.iterations
+            ));
         }
         // Forces are measured against the internal forces, but never against less than those
         // of a 1e-6 strain: an unloaded patch has only round-off forces and is converged.
@@ -158,7 +172,10 @@ fn newton(
         // At the round-off floor the residual stops falling: within 1000x of the tolerance
         // and no progress over the last STALL iterations counts as converged.
         history.push(residual);
-        if history.len() > STALL && residual <= 1e3 * settings.tolerance && residual >= 0.5 * history[history.len() - 1 - STALL] {
+        if history.len() > STALL
+            && residual <= 1e3 * settings.tolerance
+            && residual >= 0.5 * history[history.len() - 1 - STALL]
+        {
             out.converged = true;
             break;
         }
@@ -199,7 +216,7 @@ fn newton(
         chol.solve(&mut dx);
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        if !(slope < 0.0) {
+        if slope.is_nan() || slope >= 0.0 {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
                 residual = f64::INFINITY;
                 continue;

@@ -37,7 +37,13 @@ pub fn nested_dissection(points: &[DVec3], adjacency: &[Vec<u32>]) -> Vec<u32> {
             (a.min(points[v as usize]), b.max(points[v as usize]))
         });
         let ext = hi - lo;
-        let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
         let mid = vs.len() / 2;
         vs.select_nth_unstable_by(mid, |a, b| {
             points[*a as usize][axis].total_cmp(&points[*b as usize][axis]).then(a.cmp(b))
@@ -74,9 +80,8 @@ mod tests {
     #[test]
     fn a_path_is_split_with_its_middle_last() {
         let pts: Vec<DVec3> = (0..200).map(|i| DVec3::new(i as f64, 0.0, 0.0)).collect();
-        let adj: Vec<Vec<u32>> = (0..200u32)
-            .map(|i| [i.wrapping_sub(1), i + 1].into_iter().filter(|&j| j < 200).collect())
-            .collect();
+        let adj: Vec<Vec<u32>> =
+            (0..200u32).map(|i| [i.wrapping_sub(1), i + 1].into_iter().filter(|&j| j < 200).collect()).collect();
         let order = nested_dissection(&pts, &adj);
         let mut seen = order.clone();
         seen.sort_unstable();

@@ -37,7 +37,12 @@ pub const fn pairs(nv: usize) -> usize {
 impl Pattern {
     /// `tie[v] = (m, dofs)`: coordinates `dofs` of v share vertex m's DOFs (m < v; m = v
     /// when untied).
-    pub fn build(points: &[glam::DVec3], fixed: &[[bool; 3]], tie: &[(u32, [bool; 3])], elements: &Elements) -> Pattern {
+    pub fn build(
+        points: &[glam::DVec3],
+        fixed: &[[bool; 3]],
+        tie: &[(u32, [bool; 3])],
+        elements: &Elements,
+    ) -> Pattern {
         let nv = fixed.len();
         let mut dof = vec![NONE; 3 * nv];
         let mut n = 0u32;
@@ -55,7 +60,11 @@ impl Pattern {
         // Tied vertices couple wherever their masters do: link in the masters' adjacency.
         let master = |v: u32| -> u32 {
             let (m, tied) = tie.get(v as usize).copied().unwrap_or((v, [false; 3]));
-            if tied.iter().any(|t| *t) { m } else { v }
+            if tied.iter().any(|t| *t) {
+                m
+            } else {
+                v
+            }
         };
         // Vertex adjacency (upper: neighbours u >= v), sorted and unique.
         let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nv];

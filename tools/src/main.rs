@@ -66,7 +66,10 @@ struct RunArgs {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    tracing_subscriber::fmt().with_env_filter(tracing_subscriber::EnvFilter::from_default_env()).with_writer(std::io::stderr).init();
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
+        .with_writer(std::io::stderr)
+        .init();
     let result = std::panic::catch_unwind(|| match cli.command {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
@@ -91,7 +94,13 @@ fn check(path: &Path) -> ExitCode {
     match load(path) {
         Ok(s) => {
             let verts: usize = s.patches.iter().flat_map(|p| &p.layers).map(|l| l.mesh.rest().len()).sum();
-            println!("{}: ok ({} patches, {} vertices, {} frames)", path.display(), s.patches.len(), verts, s.scene.frames);
+            println!(
+                "{}: ok ({} patches, {} vertices, {} frames)",
+                path.display(),
+                s.patches.len(),
+                verts,
+                s.scene.frames
+            );
             ExitCode::SUCCESS
         }
         Err(code) => code,

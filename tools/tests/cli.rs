@@ -65,7 +65,12 @@ fn check_accepts_good_and_refuses_bad_input_with_status_2() {
 fn run_writes_stats_recording_and_obj() {
     let d = scratch("run");
     let s = write(&d, "s.ron", &scene("10.0", 4));
-    let out = skinsim().args(["run", "--quiet", "--export", "obj", "--threads", "2", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
+    let out = skinsim()
+        .args(["run", "--quiet", "--export", "obj", "--threads", "2", "--out"])
+        .arg(d.join("out"))
+        .arg(&s)
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let stats = std::fs::read_to_string(d.join("out/stats.jsonl")).unwrap();
     let lines: Vec<serde_json::Value> = stats.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
@@ -77,7 +82,19 @@ fn run_writes_stats_recording_and_obj() {
         assert!(!p[key].is_null(), "missing {key}");
     }
     assert_eq!(p["converged"], true);
-    for key in ["blend_shapes", "remesh", "property_resample", "constraint_resample", "constraint_adjust", "anchor_walk", "assemble", "solve", "writeback", "log", "total"] {
+    for key in [
+        "blend_shapes",
+        "remesh",
+        "property_resample",
+        "constraint_resample",
+        "constraint_adjust",
+        "anchor_walk",
+        "assemble",
+        "solve",
+        "writeback",
+        "log",
+        "total",
+    ] {
         assert!(last["timings_ms"][key].is_number(), "missing timing {key}");
     }
     assert!(d.join("out/recording.rrd").metadata().unwrap().len() > 1000);
@@ -86,7 +103,11 @@ fn run_writes_stats_recording_and_obj() {
     assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), 87);
     assert!(obj.lines().any(|l| l.starts_with("vt ")) && obj.lines().any(|l| l.starts_with("f ")));
     // Positions are in metres: the 8 mm sheet is 0.008 wide.
-    let max_x = obj.lines().filter(|l| l.starts_with("v ")).map(|l| l.split_whitespace().nth(1).unwrap().parse::<f64>().unwrap()).fold(0.0, f64::max);
+    let max_x = obj
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(|l| l.split_whitespace().nth(1).unwrap().parse::<f64>().unwrap())
+        .fold(0.0, f64::max);
     assert!(max_x > 0.007 && max_x < 0.0081, "{max_x}");
 }
 
@@ -94,8 +115,17 @@ fn run_writes_stats_recording_and_obj() {
 fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
     let d = scratch("fail");
     // A modulus this large overflows the forces as soon as the compression starts (frame 3).
-    let s = write(&d, "s.ron", &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"));
-    let out = skinsim().args(["run", "--quiet", "--no-rerun", "--export", "obj", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
+    let s = write(
+        &d,
+        "s.ron",
+        &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"),
+    );
+    let out = skinsim()
+        .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--out"])
+        .arg(d.join("out"))
+        .arg(&s)
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("frame 3") && err.contains("\"sheet\""), "{err}");
