@@ -174,3 +174,20 @@ fn every_shipped_scene_is_valid() {
     }
     assert!(n >= 6);
 }
+
+#[test]
+fn layers_must_stack_on_an_earlier_volume_slab() {
+    let base = r#"Scene(name: "s", frames: 1, patches: [Patch(name: "p", layers: [
+        Layer(name: "skin", kind: Shell, mesh: Grid(size: (2.0, 2.0), cells: (2, 2)), material: (young: 1.0, poisson: 0.3, thickness: 0.1)),
+        Layer(name: "dermis", kind: Volume, mesh: TetSlab(size: (2.0, 2.0), cells: (2, 2), depth: 1.0, elements: 2), material: (young: 0.01, poisson: 0.45)),
+        LAST,
+    ])])"#;
+    let e = err(&base.replace("LAST", r#"Layer(name: "sc", kind: Shell, mesh: SurfaceOf(layer: "skin"), material: (young: 1.0, poisson: 0.3, thickness: 0.01))"#));
+    assert_mentions(&e, &["layers[2]", "mesh.layer", "not a TetSlab or TetOn"]);
+    let e = err(&base.replace("LAST", r#"Layer(name: "sc", kind: Shell, mesh: SurfaceOf(layer: "epidermis"), material: (young: 1.0, poisson: 0.3, thickness: 0.01))"#));
+    assert_mentions(&e, &["no earlier layer named \"epidermis\""]);
+    let e = err(&base.replace("LAST", r#"Layer(name: "hypo", kind: Volume, mesh: TetOn(layer: "dermis", depth: 1.0, elements: 0), material: (young: 0.01, poisson: 0.45))"#));
+    assert_mentions(&e, &["mesh.elements", "zero elements"]);
+    let ok = base.replace("LAST", r#"Layer(name: "sc", kind: Shell, mesh: SurfaceOf(layer: "dermis"), material: (young: 1.0, poisson: 0.3, thickness: 0.01))"#);
+    load_str(&ok, Path::new("scene.ron")).unwrap();
+}

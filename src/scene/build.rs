@@ -47,9 +47,34 @@ pub struct BuiltLayer {
     pub name: String,
     pub kind: LayerKind,
     pub mesh: LayerMesh,
+    /// Per mesh vertex: Some((layer, vertex)) when the vertex is another (earlier) layer's.
+    pub shared: Vec<Option<(usize, u32)>>,
+    /// The prism grid of a volume slab, for layers stacked on it.
+    pub slab: Option<SlabGrid>,
     pub material: Option<crate::model::Material>,
     pub thickness: Option<f64>,
     pub bending: Option<crate::model::Bending>,
+}
+
+/// The structured grid of a tetrahedral slab (SI, offset included).
+#[derive(Clone, Copy, Debug)]
+pub struct SlabGrid {
+    pub size: DVec2,
+    pub cells: (u32, u32),
+    pub origin: DVec3,
+    /// z of the top plane.
+    pub top: f64,
+    /// Number of vertex planes.
+    pub planes: usize,
+}
+
+impl SlabGrid {
+    fn plane_len(&self) -> usize {
+        (self.cells.0 as usize + 1) * (self.cells.1 as usize + 1)
+    }
+    fn top_offset(&self) -> usize {
+        (self.planes - 1) * self.plane_len()
+    }
 }
 
 /// Drivers with layer names resolved to indices and values in SI units.
@@ -79,6 +104,12 @@ pub enum BuiltDriver {
     },
     /// Per layer: (vertex, master vertex) pairs whose in-plane coordinates are shared.
     PlaneStrain {
+        layers: Vec<usize>,
+        axis: usize,
+        ties: Vec<Vec<(u32, u32)>>,
+    },
+    /// Per layer: (max-side vertex, min-side vertex) pairs sharing the non-axis coordinates.
+    Periodic {
         layers: Vec<usize>,
         axis: usize,
         ties: Vec<Vec<(u32, u32)>>,
@@ -174,7 +205,7 @@ impl Builder {
             if let Some(prev) = index.insert(l.name.clone(), li) {
                 return Err(self.err(format!("{lat}.name"), format!("also the name of layers[{prev}]")));
             }
-            layers.push(self.layer(&lat, l, len, stress, offset)?);
+            layers.push(self.layer(&lat, l, len, stress, offset, &layers, &index)?);
         }
         let find = |field: String, name: &str| -> Result<usize, SceneError> {
             index.get(name).copied().ok_or_else(|| self.err(field, format!("no layer named \"{name}\" in this patch")))
@@ -239,6 +270,18 @@ impl Builder {
                         layers_i.iter().map(|&li| plane_strain_ties(layers[li].mesh.rest(), axis.index())).collect();
                     BuiltDriver::PlaneStrain { layers: layers_i, axis: axis.index(), ties }
                 }
+                DriverSpec::Periodic { layers: ls, axis } => {
+                    let layers_i: Vec<usize> =
+                        ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                    let ties: Vec<Vec<(u32, u32)>> =
+                        layers_i.iter().map(|&li| periodic_ties(layers[li].mesh.rest(), axis.index())).collect();
+                    if ties.iter().all(|t| t.is_empty()) {
+                        return Err(
+                            self.err(format!("{dat}.layers"), "no vertex on the max side matches one on the min side")
+                        );
+                    }
+                    BuiltDriver::Periodic { layers: layers_i, axis: axis.index(), ties }
+                }
                 DriverSpec::Attach { layer, to, stiffness } => {
                     let a = find(format!("{dat}.layer"), layer)?;
                     let b = find(format!("{dat}.to"), to)?;
@@ -253,8 +296,18 @@ impl Builder {
         Ok(BuiltPatch { name: p.name.clone(), solver, layers, drivers })
     }
 
-    fn layer(&self, at: &str, l: &LayerSpec, len: f64, stress: f64, offset: DVec3) -> Result<BuiltLayer, SceneError> {
-        let mesh = self.mesh(at, l, len, offset)?;
+    #[allow(clippy::too_many_arguments)]
+    fn layer(
+        &self,
+        at: &str,
+        l: &LayerSpec,
+        len: f64,
+        stress: f64,
+        offset: DVec3,
+        earlier: &[BuiltLayer],
+        index: &HashMap<String, usize>,
+    ) -> Result<BuiltLayer, SceneError> {
+        let (mesh, shared, slab) = self.mesh(at, l, len, offset, earlier, index)?;
         let needs_material = l.kind != LayerKind::Kinematic;
         let (mut material, mut thickness) = (None, None);
         match (&l.material, needs_material) {
@@ -323,11 +376,34 @@ impl Builder {
                 return Err(self.err(format!("{at}.bending"), format!("only shells bend ({kind:?} layer)")))
             }
         };
-        Ok(BuiltLayer { name: l.name.clone(), kind: l.kind, mesh, material, thickness, bending })
+        Ok(BuiltLayer { name: l.name.clone(), kind: l.kind, mesh, shared, slab, material, thickness, bending })
     }
 
-    fn mesh(&self, at: &str, l: &LayerSpec, len: f64, offset: DVec3) -> Result<LayerMesh, SceneError> {
+    #[allow(clippy::type_complexity)]
+    fn mesh(
+        &self,
+        at: &str,
+        l: &LayerSpec,
+        len: f64,
+        offset: DVec3,
+        earlier: &[BuiltLayer],
+        index: &HashMap<String, usize>,
+    ) -> Result<(LayerMesh, Vec<Option<(usize, u32)>>, Option<SlabGrid>), SceneError> {
         let field = format!("{at}.mesh");
+        let base_slab = |name: &str| -> Result<(usize, SlabGrid), SceneError> {
+            let i = *index.get(name).ok_or_else(|| {
+                self.err(
+                    format!("{field}.layer"),
+                    format!("no earlier layer named \"{name}\" (layers are listed bottom to top)"),
+                )
+            })?;
+            let slab = earlier.get(i).and_then(|b| b.slab).ok_or_else(|| {
+                self.err(format!("{field}.layer"), format!("\"{name}\" is not a TetSlab or TetOn volume layer"))
+            })?;
+            Ok((i, slab))
+        };
+        let mut shared = Vec::new();
+        let mut slab = None;
         let positive = |v: f64, what: &str| -> Result<(), SceneError> {
             if v > 0.0 && v.is_finite() {
                 Ok(())
@@ -360,8 +436,15 @@ impl Builder {
                 if *elements == 0 {
                     return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
                 }
-                let (m, _) =
-                    mesh::tet_slab(DVec2::new(size.0, size.1) * len, *cells, top * len, &[(depth * len, *elements)]);
+                let size = DVec2::new(size.0, size.1) * len;
+                let (m, _) = mesh::tet_slab(size, *cells, top * len, &[(depth * len, *elements)]);
+                slab = Some(SlabGrid {
+                    size,
+                    cells: *cells,
+                    origin: offset,
+                    top: top * len + offset.z,
+                    planes: *elements as usize + 1,
+                });
                 LayerMesh::Volume(m)
             }
             MeshSpec::Obj { path } => {
@@ -380,7 +463,39 @@ impl Builder {
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 LayerMesh::Surface(m)
             }
+            MeshSpec::TetOn { layer, depth, elements } => {
+                if l.kind != LayerKind::Volume {
+                    return Err(self.err(&field, "a TetOn mesh belongs to a volume layer"));
+                }
+                positive(*depth, "depth")?;
+                if *elements == 0 {
+                    return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
+                }
+                let (bi, base) = base_slab(layer)?;
+                let new_top = base.top - base.origin.z + depth * len;
+                let (m, _) = mesh::tet_slab(base.size, base.cells, new_top, &[(depth * len, *elements)]);
+                slab = Some(SlabGrid { top: new_top + base.origin.z, planes: *elements as usize + 1, ..base });
+                // The bottom plane is the base's top plane.
+                let plane = base.plane_len();
+                shared = (0..m.rest.len()).map(|v| (v < plane).then(|| (bi, (base.top_offset() + v) as u32))).collect();
+                LayerMesh::Volume(m)
+            }
+            MeshSpec::SurfaceOf { layer } => {
+                if l.kind == LayerKind::Volume {
+                    return Err(self.err(&field, "SurfaceOf makes a surface: use it for shell or kinematic layers"));
+                }
+                let (bi, base) = base_slab(layer)?;
+                let top_local = base.top - base.origin.z;
+                let mut m = mesh::grid(base.size, base.cells, mesh::GridPattern::RightTriangle, top_local);
+                // The slab's prisms split each cell along the same diagonal as RightTriangle.
+                shared = (0..m.rest.len()).map(|v| Some((bi, (base.top_offset() + v) as u32))).collect();
+                m.uv.iter_mut().for_each(|u| *u += base.origin.truncate() - offset.truncate());
+                LayerMesh::Surface(m)
+            }
         };
+        if shared.is_empty() {
+            shared = vec![None; mesh.rest().len()];
+        }
         if let LayerMesh::Surface(m) = &mesh {
             mesh::check_surface(m).map_err(|e| self.err(&field, e.to_string()))?;
         }
@@ -388,7 +503,13 @@ impl Builder {
             LayerMesh::Surface(m) => m.rest.iter_mut().for_each(|p| *p += offset),
             LayerMesh::Volume(m) => m.rest.iter_mut().for_each(|p| *p += offset),
         }
-        Ok(mesh)
+        // Shared vertices resolve to their owner (a stacked layer's owner may itself share).
+        for s in shared.iter_mut().flatten() {
+            while let Some(owner) = earlier[s.0].shared[s.1 as usize] {
+                *s = owner;
+            }
+        }
+        Ok((mesh, shared, slab))
     }
 
     /// Pairs every vertex of `a` with the vertex of `b` at the same rest position in the plane
@@ -400,11 +521,23 @@ impl Builder {
         b: &BuiltLayer,
         k_area: f64,
     ) -> Result<Vec<(u32, u32, f64)>, SceneError> {
-        let LayerMesh::Surface(ma) = &a.mesh else {
-            return Err(self.err(format!("{at}.layer"), "attachment springs start from a surface layer"));
+        // The attached vertices and their faces: a surface's own, or a solid's bottom faces.
+        let ra = a.mesh.rest();
+        let (faces, attached): (Vec<[u32; 3]>, Vec<bool>) = match &a.mesh {
+            LayerMesh::Surface(m) => (m.faces.clone(), vec![true; ra.len()]),
+            LayerMesh::Volume(m) => {
+                let zmin = ra.iter().fold(f64::INFINITY, |z, p| z.min(p.z));
+                let tol = 1e-9 * bbox_diag(ra).max(1e-300);
+                let bottom: Vec<bool> = ra.iter().map(|p| p.z <= zmin + tol).collect();
+                let faces = mesh::surface_of_tets(&m.tets)
+                    .into_iter()
+                    .filter(|f| f.iter().all(|&v| bottom[v as usize]))
+                    .collect();
+                (faces, bottom)
+            }
         };
         let rb = b.mesh.rest();
-        let size = bbox_diag(&ma.rest).max(1e-300);
+        let size = bbox_diag(ra).max(1e-300);
         let tol = 1e-9 * size;
         let key = |p: DVec3| ((p.x / tol).round() as i64, (p.y / tol).round() as i64);
         let mut lookup: HashMap<(i64, i64), u32> = HashMap::new();
@@ -415,16 +548,16 @@ impl Builder {
                 *e = i as u32;
             }
         }
-        let mut area = vec![0.0; ma.rest.len()];
-        for f in &ma.faces {
-            let p = |i: usize| ma.rest[f[i] as usize];
+        let mut area = vec![0.0; ra.len()];
+        for f in &faces {
+            let p = |i: usize| ra[f[i] as usize];
             let ar = 0.5 * (p(1) - p(0)).cross(p(2) - p(0)).length();
             for &v in f {
                 area[v as usize] += ar / 3.0;
             }
         }
-        let mut out = Vec::with_capacity(ma.rest.len());
-        for (i, p) in ma.rest.iter().enumerate() {
+        let mut out = Vec::with_capacity(ra.len());
+        for (i, p) in ra.iter().enumerate().filter(|(i, _)| attached[*i]) {
             let j = lookup.get(&key(*p)).copied().ok_or_else(|| {
                 self.err(
                     format!("{at}.to"),
@@ -457,6 +590,25 @@ fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
         }
     }
     ties
+}
+
+/// Pairs each vertex on the max side along `axis` with the min-side vertex at the same other
+/// coordinates.
+fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
+    let (lo, hi) = bbox(rest);
+    let tol = 1e-9 * (hi - lo).length().max(1e-300);
+    let key = |p: &DVec3| {
+        let mut q = *p;
+        q[axis] = 0.0;
+        ((q.x / tol).round() as i64, (q.y / tol).round() as i64, (q.z / tol).round() as i64)
+    };
+    let min_side: HashMap<_, u32> =
+        rest.iter().enumerate().filter(|(_, p)| p[axis] <= lo[axis] + tol).map(|(i, p)| (key(p), i as u32)).collect();
+    rest.iter()
+        .enumerate()
+        .filter(|(_, p)| p[axis] >= hi[axis] - tol)
+        .filter_map(|(i, p)| min_side.get(&key(p)).map(|&m| (i as u32, m)))
+        .collect()
 }
 
 fn bbox(points: &[DVec3]) -> (DVec3, DVec3) {

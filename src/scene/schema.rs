@@ -191,6 +191,12 @@ pub enum MeshSpec {
     },
     /// A triangle surface from an OBJ file (path relative to the scene file), in length units.
     Obj { path: String },
+    /// A tetrahedral slab stacked on the top of an earlier volume layer (TetSlab or TetOn),
+    /// sharing its top vertices: `depth` thick with `elements` prisms through it (H15 4.1).
+    TetOn { layer: String, depth: f64, elements: u32 },
+    /// The top surface of an earlier volume layer: a shell (or kinematic) layer whose vertices
+    /// are that layer's top vertices (H15: the stratum corneum over the dermis).
+    SurfaceOf { layer: String },
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
@@ -319,6 +325,14 @@ pub enum DriverSpec {
     PlaneStrain {
         layers: Vec<String>,
         #[serde(default = "axis_y")]
+        axis: Axis,
+    },
+    /// Periodic along `axis`: vertices on the max side share their other coordinates with the
+    /// vertex at the same place on the min side, so waves continue across (a domain of a whole
+    /// number of wavelengths). The axis coordinate itself is left to Pin and Compress.
+    Periodic {
+        layers: Vec<String>,
+        #[serde(default)]
         axis: Axis,
     },
 }

@@ -45,6 +45,20 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
             _ => {}
         }
     }
+    // Shared vertices belong to an earlier layer: their pins and masses go to the owner.
+    let mut mass: Vec<Vec<f64>> = p.layers.iter().map(lumped_mass).collect();
+    for li in (0..p.layers.len()).rev() {
+        for (v, s) in p.layers[li].shared.iter().enumerate() {
+            if let Some((owner, ov)) = *s {
+                let f = fixed[li][v];
+                let m = mass[li][v];
+                for k in 0..3 {
+                    fixed[owner][ov as usize][k] |= f[k];
+                }
+                mass[owner][ov as usize] += m;
+            }
+        }
+    }
     let mut all_rest = Vec::new();
     let mut rng = p.solver.perturbation.map(|q| (q.amplitude, rand_pcg::Pcg64::seed_from_u64(q.seed)));
     for (li, l) in p.layers.iter().enumerate() {
@@ -52,7 +66,9 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         if let (Some((amplitude, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
             perturb(m, &fixed[li], *amplitude, rng);
         }
-        let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li]);
+        let owners: Vec<Option<Entity>> =
+            l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
+        let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li], &mass[li], &owners);
         all_rest.extend_from_slice(l.mesh.rest());
         layers.push(layer);
         layer_vertices.push(verts);
@@ -98,6 +114,19 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                     }
                 }
             }
+            BuiltDriver::Periodic { layers: ls, axis, ties } => {
+                // Vertices already tied (by PlaneStrain) follow their master, which is tied here.
+                for (&l, pairs) in ls.iter().zip(ties) {
+                    let mut dofs = [true; 3];
+                    dofs[*axis] = false;
+                    for &(v, m) in pairs {
+                        let (slave, master) = (layer_vertices[l][v as usize], layer_vertices[l][m as usize]);
+                        if world.get::<Tied>(slave).is_none() {
+                            world.entity_mut(slave).insert(Tied { master, dofs });
+                        }
+                    }
+                }
+            }
             BuiltDriver::Pin { .. } => {}
         }
     }
@@ -108,12 +137,16 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     patch
 }
 
+/// Spawns a layer and its own vertices; `owners[v]` is the entity of a vertex shared with an
+/// earlier layer. Returns the layer and the entity of every mesh vertex.
 fn spawn_layer(
     world: &mut World,
     patch: Entity,
     l: &BuiltLayer,
     index: u32,
     fixed: &[[bool; 3]],
+    mass: &[f64],
+    owners: &[Option<Entity>],
 ) -> (Entity, Vec<Entity>) {
     let mut e = world.spawn((Layer { name: l.name.clone(), kind: l.kind, index }, LayerOf(patch), TopologyEpoch(0)));
     if let Some(m) = l.material {
@@ -127,13 +160,13 @@ fn spawn_layer(
     }
     let layer = e.id();
     let rest = l.mesh.rest();
-    let mass = lumped_mass(l);
     let uv: Vec<DVec2> = match &l.mesh {
         LayerMesh::Surface(m) => m.uv.clone(),
         LayerMesh::Volume(m) => m.rest.iter().map(|p| p.truncate()).collect(),
     };
-    let verts: Vec<Entity> = world
-        .spawn_batch((0..rest.len()).map(|i| {
+    let own: Vec<usize> = (0..rest.len()).filter(|&i| owners[i].is_none()).collect();
+    let spawned: Vec<Entity> = world
+        .spawn_batch(own.iter().map(|&i| {
             (
                 VertexOf(layer),
                 MaterialPos(uv[i]),
@@ -145,6 +178,9 @@ fn spawn_layer(
             )
         }))
         .collect();
+    let mut next = spawned.into_iter();
+    let verts: Vec<Entity> =
+        owners.iter().map(|o| o.unwrap_or_else(|| next.next().expect("one per own vertex"))).collect();
     match &l.mesh {
         LayerMesh::Surface(m) => {
             let shell = l.kind == LayerKind::Shell;

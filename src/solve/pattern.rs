@@ -58,23 +58,27 @@ impl Pattern {
             }
         }
         // Tied vertices couple wherever their masters do: link in the masters' adjacency.
-        let master = |v: u32| -> u32 {
-            let (m, tied) = tie.get(v as usize).copied().unwrap_or((v, [false; 3]));
-            if tied.iter().any(|t| *t) {
-                m
-            } else {
-                v
+        // A vertex's DOFs may belong to the vertices up its chain of ties: couple them all.
+        let chain = |v: u32| -> Vec<u32> {
+            let mut out = vec![v];
+            let mut cur = v;
+            loop {
+                let (m, tied) = tie.get(cur as usize).copied().unwrap_or((cur, [false; 3]));
+                if m == cur || !tied.iter().any(|t| *t) {
+                    return out;
+                }
+                out.push(m);
+                cur = m;
             }
         };
         // Vertex adjacency (upper: neighbours u >= v), sorted and unique.
         let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nv];
         let mut link = |vs: &[u32]| {
-            for &a in vs {
-                for &b in vs {
-                    for (x, y) in [(a, b), (master(a), b), (a, master(b)), (master(a), master(b))] {
-                        let (lo, hi) = (x.min(y), x.max(y));
-                        adj[lo as usize].push(hi);
-                    }
+            let all: Vec<u32> = vs.iter().flat_map(|&v| chain(v)).collect();
+            for &a in &all {
+                for &b in &all {
+                    let (lo, hi) = (a.min(b), a.max(b));
+                    adj[lo as usize].push(hi);
                 }
             }
         };

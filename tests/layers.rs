@@ -1,0 +1,118 @@
+//! Layered volumetric patches (the groundwork of H15's construction): tetrahedral layers stacked
+//! with shared interface vertices, a shell that is the top surface of a volume layer, the bottom
+//! attached by springs, periodic and plane-strain ties.
+
+mod common;
+
+use bevy_ecs::prelude::*;
+use common::*;
+use skinsim::model::{Mass, Position, Spring};
+use skinsim::scene::load_str;
+use skinsim::solve::SolverBody;
+use skinsim_systems::Simulation;
+
+const STACK: &str = r#"Scene(name: "stack", frames: 2, units: (length: Millimetre, stress: KiloPascal), patches: [
+    Patch(name: "skin", solver: (projection: Adaptive), layers: [
+        Layer(name: "body", kind: Kinematic, mesh: Grid(size: (4.0, 2.0), cells: (4, 2), pattern: RightTriangle, z: -3.0)),
+        Layer(name: "hypodermis", kind: Volume,
+              mesh: TetSlab(size: (4.0, 2.0), cells: (4, 2), depth: 1.5, elements: 2, top: -1.0),
+              material: (young: 13.0, poisson: 0.45, density: 1000.0)),
+        Layer(name: "dermis", kind: Volume, mesh: TetOn(layer: "hypodermis", depth: 1.0, elements: 3),
+              material: (young: 1.0, poisson: 0.45, density: 1200.0)),
+        Layer(name: "corneum", kind: Shell, mesh: SurfaceOf(layer: "dermis"),
+              material: (young: 1000.0, poisson: 0.45, density: 1500.0, thickness: 0.02), bending: (model: Tan)),
+    ], drivers: [
+        Attach(layer: "hypodermis", to: "body", stiffness: 10.0),
+        Compress(layers: ["body", "hypodermis", "dermis"], keyframes: [(0, 0.0), (2, 0.05)]),
+    ]),
+])"#;
+
+#[test]
+fn stacked_layers_share_their_interfaces() {
+    let scene = load_str(STACK, &scene_path("stack.ron")).unwrap();
+    let dermis = &scene.patches[0].layers[2];
+    assert_eq!(dermis.mesh.rest()[0].z, -1.0e-3, "the dermis starts on the hypodermis' top");
+    let mut sim = Simulation::new(&scene);
+    let plane = 5 * 3;
+    // body + hypodermis (3 planes) + dermis (3 new planes); the corneum owns no vertex.
+    let unique = plane + 3 * plane + 3 * plane;
+    let stats = sim.step();
+    assert_eq!(stats.patches[0].vertices, unique);
+    assert!(stats.patches[0].converged, "{:?}", stats.patches[0]);
+    // Springs from the hypodermis' bottom plane only.
+    let springs = sim.world.query::<&Spring>().iter(&sim.world).count();
+    assert_eq!(springs, plane);
+    // Lumped masses: every layer's density x volume, shared vertices counted once.
+    let total: f64 = sim.world.query::<&Mass>().iter(&sim.world).map(|m| m.0).sum();
+    let volume = |depth: f64| 4e-3 * 2e-3 * depth;
+    let expected = 1000.0 * volume(1.5e-3) + 1200.0 * volume(1.0e-3) + 1500.0 * 4e-3 * 2e-3 * 0.02e-3;
+    assert!((total / expected - 1.0).abs() < 1e-12, "{total} vs {expected}");
+    // The corneum's faces use the dermis' own top vertices (shared, not copied).
+    let mut layers = sim.world.query::<(Entity, &skinsim::model::Layer)>();
+    let id = |name: &str, w: &World, q: &mut QueryState<(Entity, &skinsim::model::Layer)>| {
+        q.iter(w).find(|(_, l)| l.name == name).unwrap().0
+    };
+    let (dermis, corneum) = (id("dermis", &sim.world, &mut layers), id("corneum", &sim.world, &mut layers));
+    let mut faces = sim.world.query::<(&skinsim::model::FaceVerts, &skinsim::model::FaceOf)>();
+    let corneum_faces: Vec<[Entity; 3]> =
+        faces.iter(&sim.world).filter(|(_, of)| of.0 == corneum).map(|(f, _)| f.0).collect();
+    assert_eq!(corneum_faces.len(), 2 * 4 * 2);
+    for f in corneum_faces {
+        for v in f {
+            assert_eq!(sim.world.get::<skinsim::model::VertexOf>(v).unwrap().0, dermis);
+            assert!((sim.world.get::<skinsim::model::RestPos>(v).unwrap().0.z).abs() < 1e-12, "top plane z = 0");
+        }
+    }
+}
+
+const STRIP: &str = r#"Scene(name: "periodic", frames: 3, patches: [
+    Patch(name: "bilayer", solver: (projection: Adaptive, perturbation: (amplitude: 0.01, seed: 2)), layers: [
+        Layer(name: "substrate", kind: Volume, mesh: TetSlab(size: (20.0, 1.0), cells: (20, 1), depth: 10.0, elements: 5),
+              material: (young: 0.01, poisson: 0.3)),
+        Layer(name: "film", kind: Shell, mesh: SurfaceOf(layer: "substrate"),
+              material: (young: 10.0, poisson: 0.3, thickness: 0.1), bending: (model: Tan)),
+    ], drivers: [
+        PlaneStrain(layers: ["substrate", "film"], axis: Y),
+        Periodic(layers: ["substrate"], axis: X),
+        Pin(layer: "substrate", select: Sides([ZMin])),
+        Pin(layer: "substrate", select: Sides([XMin, XMax]), dofs: (x: true, y: false, z: false)),
+        Compress(layers: ["substrate"], keyframes: [(0, 0.0), (3, 0.05)]),
+    ]),
+])"#;
+
+#[test]
+fn periodic_and_plane_strain_ties_hold_after_solving() {
+    let scene = load_str(STRIP, &scene_path("periodic.ron")).unwrap();
+    let mut sim = Simulation::new(&scene);
+    for _ in 0..3 {
+        let s = sim.step();
+        assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+    }
+    let mut q = sim.world.query::<&SolverBody>();
+    let body = q.single(&sim.world).unwrap();
+    let rest: Vec<glam::DVec3> =
+        body.vertices.iter().map(|e| sim.world.get::<skinsim::model::RestPos>(*e).unwrap().0).collect();
+    let pos = |e: Entity| sim.world.get::<Position>(e).unwrap().0;
+    let mut checked = 0;
+    for (i, a) in rest.iter().enumerate() {
+        for (j, b) in rest.iter().enumerate() {
+            let same_column = (a.x - b.x).abs() < 1e-12 && (a.z - b.z).abs() < 1e-12 && i != j;
+            let across = (a.x - 0.0).abs() < 1e-12
+                && (b.x - 0.02).abs() < 1e-12
+                && (a.y - b.y).abs() < 1e-12
+                && (a.z - b.z).abs() < 1e-12;
+            let (pa, pb) = (pos(body.vertices[i]), pos(body.vertices[j]));
+            if same_column {
+                assert_eq!((pa.x, pa.z), (pb.x, pb.z), "plane strain");
+                checked += 1;
+            }
+            if across {
+                assert_eq!(pa.z, pb.z, "periodic in z");
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 100);
+    // The compression really deformed the strip.
+    assert!(body.x.iter().any(|p| p.z.abs() > 1e-7));
+}
