@@ -145,7 +145,8 @@ fn rebuild(
             for &e in le.entities() {
                 if let Ok((ev, h)) = hinges.get(e) {
                     let v = [idx(&ev.0[0]), idx(&ev.0[1]), idx(&h.opposite[0]), idx(&h.opposite[1])];
-                    el.hinges.push(HingeElem { v, rest: h.rest, model: b.model });
+                    let image = h.image.map(|[a, b]| (idx(&a), idx(&b)));
+                    el.hinges.push(HingeElem { v, rest: h.rest, model: b.model, image });
                 }
             }
         }

@@ -163,6 +163,9 @@ pub struct EdgeVerts(pub [Entity; 2]);
 pub struct Hinge {
     pub opposite: [Entity; 2],
     pub rest: HingeRest,
+    /// A hinge across a periodic seam: the second opposite vertex stands at its periodic image,
+    /// its position plus (position of image[0] - position of image[1]).
+    pub image: Option<[Entity; 2]>,
 }
 
 /// Face -> Layer.

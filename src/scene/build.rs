@@ -77,6 +77,15 @@ impl SlabGrid {
     }
 }
 
+/// A hinge across a periodic seam: `v` in hinge order (edge on the max side, its face's
+/// opposite vertex, the min-side face's opposite vertex), and the (max, min) pair of vertices
+/// whose difference is the period.
+#[derive(Clone, Copy, Debug)]
+pub struct SeamHinge {
+    pub v: [u32; 4],
+    pub image: (u32, u32),
+}
+
 /// Drivers with layer names resolved to indices and values in SI units.
 #[derive(Clone, Debug)]
 pub enum BuiltDriver {
@@ -108,11 +117,13 @@ pub enum BuiltDriver {
         axis: usize,
         ties: Vec<Vec<(u32, u32)>>,
     },
-    /// Per layer: (max-side vertex, min-side vertex) pairs sharing the non-axis coordinates.
+    /// Per layer: (max-side vertex, min-side vertex) pairs sharing the non-axis coordinates,
+    /// and for shells the hinges across the seam.
     Periodic {
         layers: Vec<usize>,
         axis: usize,
         ties: Vec<Vec<(u32, u32)>>,
+        seams: Vec<Vec<SeamHinge>>,
     },
 }
 
@@ -280,7 +291,14 @@ impl Builder {
                             self.err(format!("{dat}.layers"), "no vertex on the max side matches one on the min side")
                         );
                     }
-                    BuiltDriver::Periodic { layers: layers_i, axis: axis.index(), ties }
+                    let seams = layers_i
+                        .iter()
+                        .map(|&li| match (&layers[li].mesh, layers[li].kind) {
+                            (LayerMesh::Surface(m), LayerKind::Shell) => periodic_seams(m, axis.index()),
+                            _ => Vec::new(),
+                        })
+                        .collect();
+                    BuiltDriver::Periodic { layers: layers_i, axis: axis.index(), ties, seams }
                 }
                 DriverSpec::Attach { layer, to, stiffness } => {
                     let a = find(format!("{dat}.layer"), layer)?;
@@ -609,6 +627,37 @@ fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
         .filter(|(_, p)| p[axis] >= hi[axis] - tol)
         .filter_map(|(i, p)| min_side.get(&key(p)).map(|&m| (i as u32, m)))
         .collect()
+}
+
+/// Hinges joining a shell's boundary edges on the max side to the matching ones on the min side.
+fn periodic_seams(m: &SurfaceMesh, axis: usize) -> Vec<SeamHinge> {
+    let (lo, hi) = bbox(&m.rest);
+    let tol = 1e-9 * (hi - lo).length().max(1e-300);
+    let key = |v: u32| {
+        let mut q = m.rest[v as usize];
+        q[axis] = 0.0;
+        ((q.x / tol).round() as i64, (q.y / tol).round() as i64, (q.z / tol).round() as i64)
+    };
+    let on = |v: u32, side: f64| (m.rest[v as usize][axis] - side).abs() <= tol;
+    let boundary: Vec<_> = mesh::edges(&m.faces).into_iter().filter(|e| !e.is_interior()).collect();
+    let min_side: HashMap<_, (u32, u32, u32)> = boundary
+        .iter()
+        .filter(|e| on(e.v[0], lo[axis]) && on(e.v[1], lo[axis]))
+        .map(|e| ((key(e.v[0]), key(e.v[1])), (e.v[0], e.v[1], e.opposite[0])))
+        .collect();
+    let mut out = Vec::new();
+    for e in boundary.iter().filter(|e| on(e.v[0], hi[axis]) && on(e.v[1], hi[axis])) {
+        let (a, b) = (e.v[0], e.v[1]);
+        // The matching min-side edge runs the other way in its face.
+        let found = min_side
+            .get(&(key(b), key(a)))
+            .map(|&(_, a0, o)| (a0, o))
+            .or_else(|| min_side.get(&(key(a), key(b))).map(|&(a0, _, o)| (a0, o)));
+        if let Some((a0, o2)) = found {
+            out.push(SeamHinge { v: [a, b, e.opposite[0], o2], image: (a, a0) });
+        }
+    }
+    out
 }
 
 fn bbox(points: &[DVec3]) -> (DVec3, DVec3) {

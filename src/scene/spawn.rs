@@ -114,7 +114,23 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                     }
                 }
             }
-            BuiltDriver::Periodic { layers: ls, axis, ties } => {
+            BuiltDriver::Periodic { layers: ls, axis, ties, seams } => {
+                for (&l, seam) in ls.iter().zip(seams) {
+                    let Some(b) = p.layers[l].bending else { continue };
+                    let rest = p.layers[l].mesh.rest();
+                    let vs = &layer_vertices[l];
+                    for s in seam {
+                        let shift = rest[s.image.0 as usize] - rest[s.image.1 as usize];
+                        let mut x = s.v.map(|i| rest[i as usize]);
+                        x[3] += shift;
+                        let hinge = Hinge {
+                            opposite: [vs[s.v[2] as usize], vs[s.v[3] as usize]],
+                            rest: HingeRest::from_rest(b.model, b.stiffness, x),
+                            image: Some([vs[s.image.0 as usize], vs[s.image.1 as usize]]),
+                        };
+                        world.spawn((EdgeVerts([vs[s.v[0] as usize], vs[s.v[1] as usize]]), EdgeOf(layers[l]), hinge));
+                    }
+                }
                 // Vertices already tied (by PlaneStrain) follow their master, which is tied here.
                 for (&l, pairs) in ls.iter().zip(ties) {
                     let mut dofs = [true; 3];
@@ -214,6 +230,7 @@ fn spawn_layer(
                                 Some(Hinge {
                                     opposite: [verts[q[2] as usize], verts[q[3] as usize]],
                                     rest: HingeRest::from_rest(b.model, b.stiffness, q.map(|i| m.rest[i as usize])),
+                                    image: None,
                                 })
                             }
                             _ => None,

@@ -26,6 +26,21 @@ pub struct HingeElem {
     pub v: [u32; 4],
     pub rest: HingeRest,
     pub model: HingeModel,
+    /// Periodic seam: v[3] is placed at x[v[3]] + x[a] - x[b] (the period vector, constant
+    /// during a solve because the seam's axis coordinates are prescribed).
+    pub image: Option<(u32, u32)>,
+}
+
+impl HingeElem {
+    /// The four positions of the hinge, the periodic image applied.
+    #[inline]
+    pub fn positions(&self, x: &[DVec3]) -> [DVec3; 4] {
+        let mut p = self.v.map(|i| x[i as usize]);
+        if let Some((a, b)) = self.image {
+            p[3] += x[a as usize] - x[b as usize];
+        }
+        p
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -129,7 +144,7 @@ impl SolverBody {
             for e in crate::mesh::edges(&mesh.faces).into_iter().filter(|e| e.is_interior()) {
                 let v = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]];
                 let rest = HingeRest::from_rest(hinge_model, k_b, v.map(|i| mesh.rest[i as usize]));
-                el.hinges.push(HingeElem { v, rest, model: hinge_model });
+                el.hinges.push(HingeElem { v, rest, model: hinge_model, image: None });
             }
         }
         let (lo, hi) =

@@ -31,7 +31,7 @@ fn sum_chunks<E: Sync>(elems: &[E], f: impl Fn(&E) -> f64 + Sync) -> f64 {
 pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
     [
         sum_chunks(&elements.membranes, |e| membrane::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
-        sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &gather(x, &e.v))),
+        sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &e.positions(x))),
         sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
         sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize])),
     ]
@@ -69,7 +69,7 @@ pub fn assemble(
         &el.hinges,
         &pattern.hinges,
         |e| e.v,
-        |e| hinge::eval(e.model, &e.rest, &gather(x, &e.v), filter),
+        |e| hinge::eval(e.model, &e.rest, &e.positions(x), filter),
     );
     out.parts[2] = acc.class::<_, 4, 12>(
         &el.tets,
@@ -195,7 +195,7 @@ pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
         add(&e.v, membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
     }
     for e in &el.hinges {
-        add(&e.v, hinge::eval(e.model, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
+        add(&e.v, hinge::eval(e.model, &e.rest, &e.positions(x), Filter::Exact).1.as_slice());
     }
     for e in &el.tets {
         add(&e.v, tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
