@@ -141,6 +141,7 @@ fn the_recording_holds_every_layer_and_frame() {
     let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
     let decoder = rerun::external::re_log_encoding::DecoderApp::decode_eager(file).unwrap();
     let mut frames: BTreeMap<String, BTreeSet<i64>> = BTreeMap::new();
+    let mut sim_time = BTreeSet::new();
     for msg in decoder {
         if let rerun::log::LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
             let chunk = rerun::log::Chunk::from_arrow_msg(&arrow).unwrap();
@@ -148,9 +149,15 @@ fn the_recording_holds_every_layer_and_frame() {
             if let Some(col) = chunk.timelines().get(&"frame".into()) {
                 entry.extend(col.times_raw().iter().copied());
             }
+            if let Some(col) = chunk.timelines().get(&"sim_time".into()) {
+                sim_time.extend(col.times_raw().iter().copied());
+            }
         }
     }
     let _ = std::fs::remove_file(&path);
+    // sim_time in nanoseconds: frames 1..3 at 1/30 s.
+    let expected: BTreeSet<i64> = (1..=3).map(|f| (f as f64 / 30.0 * 1e9).round() as i64).collect();
+    assert_eq!(sim_time, expected);
     for entity in ["/patches/strip/film", "/patches/strip/base", "/stats/strip/energy", "/timings/solve"] {
         let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
         assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2, 3], "{entity}");

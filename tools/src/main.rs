@@ -70,16 +70,17 @@ fn main() -> ExitCode {
         .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
         .with_writer(std::io::stderr)
         .init();
+    // A bug must not greet the user with a Rust backtrace: one line, and the status says so.
+    std::panic::set_hook(Box::new(|info| {
+        eprintln!("error: internal error in skinsim (please report it): {info}");
+    }));
     let result = std::panic::catch_unwind(|| match cli.command {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
     });
     match result {
         Ok(code) => code,
-        Err(_) => {
-            eprintln!("error: internal error (a bug in skinsim; the message above says where)");
-            ExitCode::from(70)
-        }
+        Err(_) => ExitCode::from(70),
     }
 }
 
