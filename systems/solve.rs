@@ -41,6 +41,7 @@ pub fn solve_patches(
                 regularized: o.regularized,
                 line_search_failures: o.line_search_failures,
                 solve_breakdown_ms: o.counters,
+                escapes: o.escapes,
             }),
             Err(reason) => {
                 if failure.0.is_none() {

@@ -200,3 +200,23 @@ fn case6_euler_buckling_clamped_critical_load() {
     println!("case 6 clamped: P/Pcr {:.5} vs {:.5} ({:+.3} %)", p / p_cr, p_theory, 100.0 * err);
     assert!(err.abs() < 0.01, "clamped critical load off by {err}");
 }
+
+/// Hard case: a perfect strip (no imperfection at all) compressed past the buckling load sits
+/// on an unstable straight equilibrium; the stability check must leave it and find the buckled
+/// state, whose end force is the critical load.
+#[test]
+fn a_perfect_strip_still_buckles() {
+    let mut scene = load("validation/euler_pinned.ron");
+    scene.patches[0].solver.perturbation = None;
+    let d = plate_d(&scene);
+    let mut sim = skinsim_systems::Simulation::new(&scene);
+    let stats = sim.step();
+    assert!(stats.patches[0].converged, "{:?}", stats.patches[0]);
+    assert!(stats.patches[0].escapes >= 1, "the straight state was accepted");
+    let (p, w, l) = strip_measures(&mut sim);
+    let p_cr = std::f64::consts::PI.powi(2) * d / (l * l);
+    let (p_theory, w_theory, _) = elastica(1e-3);
+    println!("perfect strip: P/Pcr {:.5} (theory {p_theory:.5}), w/L {:.5} (theory {w_theory:.5})", p / p_cr, w / l);
+    assert!(rel(p / p_cr, p_theory).abs() < 0.01);
+    assert!(rel(w / l, w_theory).abs() < 0.01);
+}

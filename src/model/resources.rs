@@ -105,6 +105,8 @@ pub struct PatchReport {
     /// Factorizations that needed a diagonal shift.
     pub regularized: u32,
     pub line_search_failures: u32,
+    /// Unstable equilibria left along negative curvature (quasistatic stability check).
+    pub escapes: u32,
     /// Time inside the solve: element assembly, factorization, line search (ms).
     pub solve_breakdown_ms: crate::solve::SolveCounters,
 }

@@ -124,6 +124,10 @@ pub struct SolverSpec {
     /// A seeded random normal displacement of free shell vertices before the first frame.
     #[serde(default)]
     pub perturbation: Option<Perturbation>,
+    /// Quasistatic mode: at convergence, test the exact Hessian; at an unstable equilibrium
+    /// (a saddle: the flat state past the buckling load) leave it along negative curvature.
+    #[serde(default = "default_true")]
+    pub stability_check: bool,
 }
 
 fn default_tolerance() -> f64 {
@@ -141,6 +145,7 @@ impl Default for SolverSpec {
             max_iterations: default_max_iterations(),
             projection: Projection::default(),
             perturbation: None,
+            stability_check: true,
         }
     }
 }

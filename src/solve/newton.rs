@@ -18,6 +18,8 @@ const MAX_HALVINGS: u32 = 40;
 const ADAPTIVE_SWITCH: f64 = 1e-3;
 /// Round-off band of an energy sum, relative to its elements' energy at unit strain.
 const ROUND_OFF: f64 = 1e-13;
+/// Saddles left per frame at most.
+const MAX_ESCAPES: u32 = 4;
 /// Iterations without progress that signal the round-off floor.
 const STALL: usize = 4;
 /// Smallest force scale, relative to the elements' forces at unit strain.
@@ -33,6 +35,8 @@ pub struct FrameOutcome {
     pub parts: [f64; 4],
     pub regularized: u32,
     pub line_search_failures: u32,
+    /// Times the solve left an unstable equilibrium along negative curvature.
+    pub escapes: u32,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
     /// factorization and triangular solves, line-search energy evaluations.
     pub counters: SolveCounters,
@@ -165,18 +169,29 @@ fn newton(
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;
-        if n == 0 || residual <= settings.tolerance {
-            out.converged = true;
-            break;
-        }
         // At the round-off floor the residual stops falling: within 1000x of the tolerance
         // and no progress over the last STALL iterations counts as converged.
         history.push(residual);
-        if history.len() > STALL
+        let stalled = history.len() > STALL
             && residual <= 1e3 * settings.tolerance
-            && residual >= 0.5 * history[history.len() - 1 - STALL]
-        {
+            && residual >= 0.5 * history[history.len() - 1 - STALL];
+        if n == 0 || residual <= settings.tolerance || stalled {
             out.converged = true;
+            let check = settings.stability_check && !dynamic && n > 0 && out.escapes < MAX_ESCAPES;
+            if check {
+                if filter != Filter::Exact {
+                    assemble(&body.elements, pattern, &body.x, Filter::Exact, &mut grad, &mut values);
+                }
+                let energy_at = |x: &[DVec3]| energy(&body.elements, x).iter().sum::<f64>();
+                if let Some(x) = leave_saddle(body, pattern, chol, &values, phi, energy_scale, &energy_at) {
+                    body.x = x;
+                    out.escapes += 1;
+                    out.converged = false;
+                    history.clear();
+                    residual = f64::INFINITY;
+                    continue;
+                }
+            }
             break;
         }
         if out.iterations >= settings.max_iterations {
@@ -266,6 +281,89 @@ fn newton(
         }
     }
     Ok(out)
+}
+
+/// At a converged point: if the exact Hessian `h` is indefinite, returns a lower-energy state
+/// along its most negative curvature direction (shifted inverse iteration with a Cholesky of
+/// H + sigma I, then a search over the step length and sign); None at a stable equilibrium.
+fn leave_saddle(
+    body: &SolverBody,
+    pattern: &Pattern,
+    chol: &mut CholeskySolver,
+    h: &[f64],
+    phi: f64,
+    energy_scale: f64,
+    energy_at: &dyn Fn(&[DVec3]) -> f64,
+) -> Option<Vec<DVec3>> {
+    if chol.factorize(pattern, h).is_ok() {
+        return None;
+    }
+    let n = pattern.n;
+    let mean_diag = pattern.diag.iter().map(|&d| h[d as usize].abs()).sum::<f64>() / n as f64;
+    let mut shifted = h.to_vec();
+    let mut sigma = 1e-6 * mean_diag.max(f64::MIN_POSITIVE);
+    let mut ok = false;
+    for _ in 0..14 {
+        shifted.copy_from_slice(h);
+        for &d in &pattern.diag {
+            shifted[d as usize] += sigma;
+        }
+        if chol.factorize(pattern, &shifted).is_ok() {
+            ok = true;
+            break;
+        }
+        sigma *= 4.0;
+    }
+    if !ok {
+        return None;
+    }
+    // Inverse iteration: (H + sigma I)^-1 amplifies the eigenvector of the lowest eigenvalue.
+    let mut y: Vec<f64> = (0..n).map(|i| ((i as f64 + 1.0) * 12.9898).sin().fract() - 0.5).collect();
+    for _ in 0..16 {
+        chol.solve(&mut y);
+        let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+        y.iter_mut().for_each(|v| *v /= norm);
+    }
+    let hy = symmetric_product(pattern, h, &y);
+    let curvature: f64 = y.iter().zip(&hy).map(|(a, b)| a * b).sum();
+    if curvature >= -1e-9 * mean_diag {
+        return None;
+    }
+    // Step along +-y, scaled so the largest displacement is t, growing t while energy falls.
+    let max = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let noise = ROUND_OFF * energy_scale;
+    let mut best: Option<(f64, Vec<DVec3>)> = None;
+    for sign in [1.0, -1.0] {
+        let mut t = 1e-5 * body.length_scale;
+        for _ in 0..10 {
+            let mut x = body.x.clone();
+            step(&mut x, &body.x, &pattern.dof, &y, sign * t / max);
+            let e = energy_at(&x);
+            if !(e < phi - noise) {
+                break;
+            }
+            if best.as_ref().is_none_or(|b| e < b.0) {
+                best = Some((e, x));
+            }
+            t *= 3.0;
+        }
+    }
+    best.map(|b| b.1)
+}
+
+/// y = H x for the symmetric matrix whose lower triangle is stored in the pattern.
+fn symmetric_product(pattern: &Pattern, values: &[f64], x: &[f64]) -> Vec<f64> {
+    let mut y = vec![0.0; pattern.n];
+    for c in 0..pattern.n {
+        for k in pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize {
+            let r = pattern.row_idx[k] as usize;
+            y[r] += values[k] * x[c];
+            if r != c {
+                y[c] += values[k] * x[r];
+            }
+        }
+    }
+    y
 }
 
 fn step(x: &mut [DVec3], x0: &[DVec3], dof: &[u32], dx: &[f64], alpha: f64) {
