@@ -339,7 +339,8 @@ fn leave_saddle(
             let mut x = body.x.clone();
             step(&mut x, &body.x, &pattern.dof, &y, sign * t / max);
             let e = energy_at(&x);
-            if !(e < phi - noise) {
+            // (a NaN energy ends the search too)
+            if e.is_nan() || e >= phi - noise {
                 break;
             }
             if best.as_ref().is_none_or(|b| e < b.0) {
@@ -355,11 +356,12 @@ fn leave_saddle(
 fn symmetric_product(pattern: &Pattern, values: &[f64], x: &[f64]) -> Vec<f64> {
     let mut y = vec![0.0; pattern.n];
     for c in 0..pattern.n {
-        for k in pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize {
-            let r = pattern.row_idx[k] as usize;
-            y[r] += values[k] * x[c];
+        let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
+        for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
+            let r = r as usize;
+            y[r] += v * x[c];
             if r != c {
-                y[c] += values[k] * x[r];
+                y[c] += v * x[r];
             }
         }
     }
