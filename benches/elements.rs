@@ -67,10 +67,12 @@ fn bench(c: &mut Criterion) {
     let lame = Lame::solid(1e4, 0.45);
     let mut g = c.benchmark_group("tet");
     g.throughput(Throughput::Elements(tets.len() as u64));
-    for model in [M::BazantHencky, M::StableNeoHookean, M::Corotational] {
-        g.bench_with_input(BenchmarkId::new(format!("{model:?}"), "Clamp"), &model, |b, &m| {
-            b.iter(|| tets.iter().map(|x| tet::eval(m, lame, &trest, x, Filter::Clamp).0).sum::<f64>())
-        });
+    for model in [M::BazantHencky, M::StableNeoHookean, M::StVenantKirchhoff, M::Corotational] {
+        for filter in [Filter::Exact, Filter::Clamp] {
+            g.bench_with_input(BenchmarkId::new(format!("{model:?}"), format!("{filter:?}")), &filter, |b, &f| {
+                b.iter(|| tets.iter().map(|x| tet::eval(model, lame, &trest, x, f).0).sum::<f64>())
+            });
+        }
     }
     g.finish();
 }

@@ -69,7 +69,8 @@ pub fn eval(
     let f = deformation_gradient(rest, x);
     let (psi, p, mut hf) = match model {
         ConstitutiveModel::Corotational => corotational(lame, &f),
-        _ => {
+        ConstitutiveModel::BazantHencky | ConstitutiveModel::StVenantKirchhoff => of_c(model, lame, &f),
+        ConstitutiveModel::StableNeoHookean => {
             let fd: [Dual2SVec64<9>; 9] = std::array::from_fn(|i| Dual2SVec64::from_re(f[i]).derivative(i));
             let psi = solid_psi(model, lame, &fd);
             let p = psi.v1.unwrap_generic(nalgebra::U1, nalgebra::Const::<9>).transpose();
@@ -78,6 +79,79 @@ pub fn eval(
     };
     project(&mut hf, filter);
     chain_to_vertices::<9, 3, 4, 12>(rest.volume, psi, &p, &hf, &coefficients(&rest.b))
+}
+
+/// Symmetric 3x3 index pairs in the order of C's six independent entries.
+const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+
+/// Energies of C = F^T F: second-order AD over C's six entries, then the chain rule to F in
+/// closed form (dPsi/dF = 2 F G, d2Psi/dF2 = 2 G (x) I + 4 F H F), cheaper than AD over F.
+fn of_c(model: ConstitutiveModel, lame: Lame, f: &[f64; 9]) -> (f64, SVector<f64, 9>, SMatrix<f64, 9, 9>) {
+    let col = |j: usize| DVec3::new(f[3 * j], f[3 * j + 1], f[3 * j + 2]);
+    let cols = [col(0), col(1), col(2)];
+    let c: [f64; 6] = PAIRS.map(|(a, b)| cols[a].dot(cols[b]));
+    let cd: [Dual2SVec64<6>; 6] = std::array::from_fn(|i| Dual2SVec64::from_re(c[i]).derivative(i));
+    let psi = solid_psi_of_c(model, lame, &cd);
+    let d1 = psi.v1.unwrap_generic(nalgebra::U1, nalgebra::Const::<6>);
+    let d2 = psi.v2.unwrap_generic(nalgebra::Const::<6>, nalgebra::Const::<6>);
+    // Full symmetric-tensor derivatives: an off-diagonal entry of C appears twice.
+    let index = |a: usize, b: usize| PAIRS.iter().position(|&(p, q)| (p, q) == (a.min(b), a.max(b))).unwrap();
+    let scale = |a: usize, b: usize| if a == b { 1.0 } else { 0.5 };
+    let g = |a: usize, b: usize| d1[index(a, b)] * scale(a, b);
+    let h = |a: usize, b: usize, c: usize, d: usize| d2[(index(a, b), index(c, d))] * scale(a, b) * scale(c, d);
+    let mut p = SVector::<f64, 9>::zeros();
+    for a in 0..3 {
+        let pa = (0..3).fold(DVec3::ZERO, |acc, b| acc + cols[b] * (2.0 * g(a, b)));
+        p.fixed_rows_mut::<3>(3 * a).copy_from_slice(&pa.to_array());
+    }
+    let mut hf = SMatrix::<f64, 9, 9>::zeros();
+    for a in 0..3 {
+        for c in 0..3 {
+            let mut block = nalgebra::Matrix3::identity() * (2.0 * g(a, c));
+            for b in 0..3 {
+                for d in 0..3 {
+                    let k = 4.0 * h(a, b, c, d);
+                    if k != 0.0 {
+                        let (fb, fd) = (cols[b], cols[d]);
+                        block += nalgebra::Matrix3::new(
+                            fb.x * fd.x,
+                            fb.x * fd.y,
+                            fb.x * fd.z,
+                            fb.y * fd.x,
+                            fb.y * fd.y,
+                            fb.y * fd.z,
+                            fb.z * fd.x,
+                            fb.z * fd.y,
+                            fb.z * fd.z,
+                        ) * k;
+                    }
+                }
+            }
+            hf.fixed_view_mut::<3, 3>(3 * a, 3 * c).copy_from(&block);
+        }
+    }
+    (psi.re, p, hf)
+}
+
+/// Bazant-Hencky (H15 eq. 5.21) and StVK as functions of C = [c11, c22, c33, c12, c13, c23].
+fn solid_psi_of_c<D: num_dual::DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, lame: Lame, c: &[D; 6]) -> D {
+    let [c11, c22, c33, c12, c13, c23] = *c;
+    let (mu, la) = (lame.mu, lame.lambda);
+    match model {
+        ConstitutiveModel::BazantHencky => {
+            let (k11, k22, k33) = (c22 * c33 - c23 * c23, c11 * c33 - c13 * c13, c11 * c22 - c12 * c12);
+            let det = c11 * k11 - c12 * (c12 * c33 - c23 * c13) + c13 * (c12 * c23 - c22 * c13);
+            let tr_inv = (k11 + k22 + k33) / det;
+            let ln_det = det.ln();
+            (c11 + c22 + c33 + tr_inv - 6.0) * (mu / 4.0) + ln_det * ln_det * (la / 8.0)
+        }
+        _ => {
+            let (e11, e22, e33) = ((c11 - 1.0) * 0.5, (c22 - 1.0) * 0.5, (c33 - 1.0) * 0.5);
+            let tr_e = e11 + e22 + e33;
+            let off = (c12 * c12 + c13 * c13 + c23 * c23) * 0.25;
+            (e11 * e11 + e22 * e22 + e33 * e33 + off * 2.0) * mu + tr_e * tr_e * (la / 2.0)
+        }
+    }
 }
 
 /// Corotational linear energy in closed form: Psi = mu |F - R|^2 + lambda/2 (tr S - 3)^2.
