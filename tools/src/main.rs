@@ -25,6 +25,24 @@ enum Command {
     Run(RunArgs),
     /// Validate a scene (schema, values, meshes, assets) without running it.
     Check { scene: PathBuf },
+    /// Wrinkles of a layer from its exported frames (`run --export obj`): per frame the
+    /// compression, the dominant wavelengths and the amplitude; then the onset strain.
+    Analyze {
+        /// A folder of frames: <out>/obj/<patch>/<layer>
+        dir: PathBuf,
+        /// The compression axis in material space.
+        #[arg(long, value_enum, default_value = "x")]
+        axis: AxisArg,
+        /// The domain is periodic along the axis (whole waves only).
+        #[arg(long)]
+        periodic: bool,
+    },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum AxisArg {
+    X,
+    Y,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -77,6 +95,7 @@ fn main() -> ExitCode {
     let result = std::panic::catch_unwind(|| match cli.command {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
+        Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
     });
     match result {
         Ok(code) => code,
@@ -190,6 +209,51 @@ fn run(args: RunArgs) -> ExitCode {
         eprintln!("{} frames in {:.2} s; outputs in {}", frames, start.elapsed().as_secs_f64(), out.display());
     }
     status
+}
+
+fn analyze(dir: &Path, axis: usize, periodic: bool) -> ExitCode {
+    use skinsim_tools::wrinkles;
+    let mut files: Vec<PathBuf> = match std::fs::read_dir(dir) {
+        Ok(d) => {
+            d.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|x| x == "obj")).collect()
+        }
+        Err(e) => {
+            eprintln!("error: {}: {e}", dir.display());
+            return ExitCode::from(2);
+        }
+    };
+    files.sort();
+    if files.is_empty() {
+        eprintln!("error: {}: no .obj frames (run with --export obj)", dir.display());
+        return ExitCode::from(2);
+    }
+    println!("{:>8} {:>12} {:>14} {:>14} {:>14}", "frame", "compression", "wavelength_mm", "second_mm", "amplitude_mm");
+    let mut series = Vec::new();
+    for f in &files {
+        let m = match skinsim::mesh::obj::load(f, 1.0) {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("error: {}: {e}", f.display());
+                return ExitCode::from(2);
+            }
+        };
+        let p = wrinkles::profile(&m.rest, &m.uv, axis);
+        let eps = wrinkles::compression(&m.rest, &m.uv, axis);
+        let a = wrinkles::amplitude(&p);
+        let pk = wrinkles::peaks(&p, periodic, 0.25);
+        let w = |i: usize| pk.get(i).map_or("-".to_string(), |q| format!("{:.4}", q.wavelength * 1e3));
+        let name = f.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+        println!("{:>8} {:>12.6} {:>14} {:>14} {:>14.6}", name, eps, w(0), w(1), a * 1e3);
+        series.push((eps, a));
+    }
+    let top = series.iter().fold(0.0f64, |m, s| m.max(s.1));
+    match wrinkles::onset_strain(&series, 0.05 * top) {
+        Some(e) => {
+            println!("onset strain (fit of A^2 against strain over amplitudes above 5 % of the largest): {e:.6}")
+        }
+        None => println!("onset strain: not enough wrinkled frames"),
+    }
+    ExitCode::SUCCESS
 }
 
 fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<rerun::RecordingStream>, String> {

@@ -138,3 +138,23 @@ fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
     assert_eq!(lines[2]["patches"][0]["converged"], false);
     assert!(d.join("out/obj/sheet/film/00002.obj").is_file());
 }
+
+#[test]
+fn analyze_reports_wavelength_and_amplitude_of_exported_frames() {
+    let d = scratch("analyze");
+    let s = write(&d, "s.ron", &scene("10.0", 4));
+    let out = skinsim()
+        .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--out"])
+        .arg(d.join("out"))
+        .arg(&s)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let out = skinsim().arg("analyze").arg(d.join("out/obj/sheet/film")).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(text.lines().filter(|l| l.trim_start().starts_with("0000")).count(), 4, "{text}");
+    assert!(text.contains("onset strain"), "{text}");
+    let out = skinsim().arg("analyze").arg(d.join("nowhere")).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}

@@ -1,0 +1,3 @@
+//! Small tools around the engine, shared by the `skinsim` binary and the tests.
+
+pub mod wrinkles;

@@ -1,0 +1,205 @@
+//! Wrinkle analysis (VALIDATION.md C): from a layer's surface, the height profile along the
+//! compression axis, the dominant wavelengths (spectral peaks), the amplitude, the compression,
+//! and the strain at which wrinkles first appear (from amplitude against strain).
+
+use glam::{DVec2, DVec3};
+use rustfft::num_complex::Complex;
+use rustfft::FftPlanner;
+
+/// Heights along the material coordinate `s` of the compression axis (sorted, detrended).
+#[derive(Clone, Debug, Default)]
+pub struct Profile {
+    pub s: Vec<f64>,
+    pub h: Vec<f64>,
+}
+
+/// A spectral peak.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Peak {
+    /// In material length (m).
+    pub wavelength: f64,
+    /// Relative magnitude (the largest peak is 1).
+    pub strength: f64,
+}
+
+/// The height profile of a surface along `axis` (0 = x, 1 = y) of material space: vertices with
+/// the same material coordinate along the axis are averaged (rows of a strip), the height is
+/// the z coordinate, and the mean is removed.
+pub fn profile(positions: &[DVec3], material: &[DVec2], axis: usize) -> Profile {
+    let mut pts: Vec<(f64, f64)> = positions.iter().zip(material).map(|(p, m)| (m[axis], p.z)).collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let span = pts.last().map_or(0.0, |l| l.0) - pts.first().map_or(0.0, |f| f.0);
+    let tol = 1e-9 * span.max(1e-300);
+    let mut out = Profile::default();
+    let mut i = 0;
+    while i < pts.len() {
+        let (mut sum, mut n, s0) = (0.0, 0.0, pts[i].0);
+        while i < pts.len() && pts[i].0 - s0 <= tol {
+            sum += pts[i].1;
+            n += 1.0;
+            i += 1;
+        }
+        out.s.push(s0);
+        out.h.push(sum / n);
+    }
+    let mean = out.h.iter().sum::<f64>() / out.h.len().max(1) as f64;
+    out.h.iter_mut().for_each(|h| *h -= mean);
+    out
+}
+
+/// Half the peak-to-peak height.
+pub fn amplitude(p: &Profile) -> f64 {
+    let (lo, hi) = p.h.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), h| (a.min(*h), b.max(*h)));
+    if p.h.is_empty() {
+        0.0
+    } else {
+        0.5 * (hi - lo)
+    }
+}
+
+/// Compression along `axis`: 1 - deformed extent / material extent.
+pub fn compression(positions: &[DVec3], material: &[DVec2], axis: usize) -> f64 {
+    let ext = |v: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+        hi - lo
+    };
+    let deformed = ext(&mut positions.iter().map(|p| p[axis]));
+    let rest = ext(&mut material.iter().map(|m| m[axis]));
+    1.0 - deformed / rest
+}
+
+/// Spectral peaks of a profile, strongest first, down to `min_strength` of the strongest.
+/// `periodic`: the profile's last sample repeats its first (a periodic domain): no window, and
+/// wavelengths are exact fractions of the period. Otherwise a Hann window is applied.
+/// Without periodicity, peak positions are refined by parabolic interpolation of the log
+/// magnitude.
+pub fn peaks(p: &Profile, periodic: bool, min_strength: f64) -> Vec<Peak> {
+    if p.s.len() < 4 {
+        return Vec::new();
+    }
+    let (s0, s1) = (p.s[0], *p.s.last().unwrap());
+    let n_src = if periodic { p.s.len() - 1 } else { p.s.len() };
+    let n = (4 * n_src).next_power_of_two();
+    let domain = s1 - s0;
+    // Uniform resampling (linear interpolation) over [s0, s1) (periodic) or [s0, s1].
+    let step = if periodic { domain / n as f64 } else { domain / (n - 1) as f64 };
+    let mut j = 0;
+    let mut buf: Vec<Complex<f64>> = (0..n)
+        .map(|i| {
+            let s = s0 + i as f64 * step;
+            while j + 2 < p.s.len() && p.s[j + 1] < s {
+                j += 1;
+            }
+            let (a, b) = (p.s[j], p.s[j + 1]);
+            let t = ((s - a) / (b - a)).clamp(0.0, 1.0);
+            let mut v = p.h[j] + t * (p.h[j + 1] - p.h[j]);
+            if !periodic {
+                v *= 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (n - 1) as f64).cos();
+            }
+            Complex::new(v, 0.0)
+        })
+        .collect();
+    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
+    let mag: Vec<f64> = buf[..n / 2].iter().map(|c| c.norm()).collect();
+    let top = mag[1..].iter().fold(0.0f64, |m, v| m.max(*v));
+    if top <= 0.0 {
+        return Vec::new();
+    }
+    let length = if periodic { domain } else { step * n as f64 };
+    let mut out: Vec<Peak> = (2..mag.len() - 1)
+        .chain(std::iter::once(1).filter(|_| mag[1] > mag[2]))
+        .filter(|&k| {
+            mag[k] >= mag[k - 1].max(if k + 1 < mag.len() { mag[k + 1] } else { 0.0 }) && mag[k] >= min_strength * top
+        })
+        .map(|k| {
+            let (a, b, c) =
+                (mag[k - 1].max(1e-300).ln(), mag[k].ln(), mag[(k + 1).min(mag.len() - 1)].max(1e-300).ln());
+            let denom = a - 2.0 * b + c;
+            // A periodic domain holds whole waves only: its bins are exact.
+            let delta =
+                if !periodic && denom.abs() > 0.0 && k > 1 { (0.5 * (a - c) / denom).clamp(-0.5, 0.5) } else { 0.0 };
+            Peak { wavelength: length / (k as f64 + delta), strength: mag[k] / top }
+        })
+        .collect();
+    out.sort_by(|a, b| b.strength.total_cmp(&a.strength));
+    out
+}
+
+/// The strain at which wrinkles appear: a least-squares fit of A^2 = c (eps - eps_0) (the
+/// supercritical branch, A = h sqrt(eps / eps_c - 1)) over the points whose amplitude exceeds
+/// `min_amplitude`. None with fewer than two such points.
+pub fn onset_strain(series: &[(f64, f64)], min_amplitude: f64) -> Option<f64> {
+    let pts: Vec<(f64, f64)> = series.iter().filter(|(_, a)| *a > min_amplitude).map(|&(e, a)| (e, a * a)).collect();
+    if pts.len() < 2 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (se, sa) = pts.iter().fold((0.0, 0.0), |(x, y), (e, a)| (x + e, y + a));
+    let (me, ma) = (se / n, sa / n);
+    let (sxy, sxx) =
+        pts.iter().fold((0.0, 0.0), |(xy, xx), (e, a)| (xy + (e - me) * (a - ma), xx + (e - me) * (e - me)));
+    if sxx <= 0.0 || sxy <= 0.0 {
+        return None;
+    }
+    let slope = sxy / sxx;
+    Some(me - ma / slope)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn synthetic(f: impl Fn(f64) -> f64, n: usize, len: f64) -> Profile {
+        let s: Vec<f64> = (0..=n).map(|i| len * i as f64 / n as f64).collect();
+        let h = s.iter().map(|&x| f(x)).collect();
+        Profile { s, h }
+    }
+
+    #[test]
+    fn a_periodic_sine_has_one_exact_peak() {
+        let len = 0.17426;
+        let p = synthetic(|x| 1e-3 * (2.0 * std::f64::consts::PI * 4.0 * x / len).cos(), 80, len);
+        let pk = peaks(&p, true, 0.2);
+        assert_eq!(pk.len(), 1, "{pk:?}");
+        assert!((pk[0].wavelength / (len / 4.0) - 1.0).abs() < 1e-9, "{pk:?}");
+        assert!((amplitude(&p) - 1e-3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn two_superposed_wavelengths_give_two_peaks() {
+        let len = 0.1;
+        let p = synthetic(
+            |x| {
+                1e-3 * (2.0 * std::f64::consts::PI * x / 0.01).sin()
+                    + 0.5e-3 * (2.0 * std::f64::consts::PI * x / 0.0025).sin()
+            },
+            400,
+            len,
+        );
+        let pk = peaks(&p, false, 0.2);
+        assert!(pk.len() >= 2, "{pk:?}");
+        assert!((pk[0].wavelength / 0.01 - 1.0).abs() < 0.02, "{pk:?}");
+        assert!((pk[1].wavelength / 0.0025 - 1.0).abs() < 0.02, "{pk:?}");
+    }
+
+    #[test]
+    fn onset_from_the_supercritical_branch() {
+        let eps_c = 0.0052;
+        let series: Vec<(f64, f64)> =
+            (0..30).map(|i| 0.0006 * i as f64).map(|e| (e, 1e-3 * (e / eps_c - 1.0).max(0.0).sqrt())).collect();
+        let onset = onset_strain(&series, 1e-5).unwrap();
+        assert!((onset / eps_c - 1.0).abs() < 1e-9, "{onset}");
+    }
+
+    #[test]
+    fn rows_are_averaged_and_compression_measured() {
+        let material: Vec<DVec2> =
+            (0..10).flat_map(|i| [DVec2::new(i as f64, 0.0), DVec2::new(i as f64, 1.0)]).collect();
+        let positions: Vec<DVec3> =
+            material.iter().map(|m| DVec3::new(0.9 * m.x, m.y, if m.y > 0.5 { 2.0 } else { 0.0 })).collect();
+        let p = profile(&positions, &material, 0);
+        assert_eq!(p.s.len(), 10);
+        assert!(p.h.iter().all(|h| h.abs() < 1e-15), "averaged rows, mean removed");
+        assert!((compression(&positions, &material, 0) - 0.1).abs() < 1e-12);
+    }
+}
