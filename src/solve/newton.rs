@@ -123,8 +123,10 @@ fn newton(
     let mut values = vec![0.0; pattern.nnz()];
     let mut dx = vec![0.0; n];
     let mut out = FrameOutcome::default();
-    let mut residual = f64::INFINITY;
-    let mut force_exact = false;
+    let mut residual;
+    // H15's adaptive policy: project until the gradient has fallen below ADAPTIVE_SWITCH, then
+    // use the exact Hessian until it fails (not positive definite, or not a descent direction).
+    let mut projecting = true;
     let mut history: Vec<f64> = Vec::new();
 
     loop {
@@ -132,10 +134,9 @@ fn newton(
             Projection::None => Filter::Exact,
             Projection::Clamp => Filter::Clamp,
             Projection::Abs => Filter::Abs,
-            Projection::Adaptive if residual < ADAPTIVE_SWITCH && !force_exact => Filter::Exact,
+            Projection::Adaptive if !projecting => Filter::Exact,
             Projection::Adaptive => Filter::Clamp,
         };
-        force_exact = false;
         let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } =
             assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
@@ -169,6 +170,9 @@ fn newton(
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;
+        if residual < ADAPTIVE_SWITCH {
+            projecting = false;
+        }
         // At the round-off floor the residual stops falling: within 1000x of the tolerance
         // and no progress over the last STALL iterations counts as converged.
         history.push(residual);
@@ -188,7 +192,6 @@ fn newton(
                     out.escapes += 1;
                     out.converged = false;
                     history.clear();
-                    residual = f64::INFINITY;
                     continue;
                 }
             }
@@ -203,7 +206,7 @@ fn newton(
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
         if factorized.is_err() {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
-                residual = f64::INFINITY; // H15: fall back to the projected Hessian
+                projecting = true; // H15: fall back to the projected Hessian
                 continue;
             }
             let mean_diag = pattern.diag.iter().map(|&d| values[d as usize].abs()).sum::<f64>() / n as f64;
@@ -233,7 +236,7 @@ fn newton(
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
         if slope.is_nan() || slope >= 0.0 {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
-                residual = f64::INFINITY;
+                projecting = true;
                 continue;
             }
             // Not a descent direction (round-off at convergence): fall back to steepest descent.

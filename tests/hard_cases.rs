@@ -1,0 +1,101 @@
+//! VALIDATION.md E (stability), the cases the engine core meets: each finishes without NaN,
+//! converged, and without inverted elements where the model forbids them.
+
+mod common;
+
+use common::*;
+use skinsim::scene::load_str;
+use skinsim_systems::Simulation;
+
+fn variant(rel: &str, edits: &[(&str, &str)]) -> skinsim::scene::BuiltScene {
+    let mut text = std::fs::read_to_string(scene_path(rel)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{rel} has no {from:?}");
+        text = text.replace(from, to);
+    }
+    load_str(&text, &scene_path(rel)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn run_all_converged(scene: &skinsim::scene::BuiltScene) -> Simulation {
+    let mut sim = Simulation::new(scene);
+    for frame in 1..=scene.scene.frames {
+        let s = sim.step();
+        assert!(sim.failure().is_none(), "{:?}", sim.failure());
+        for p in &s.patches {
+            assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
+        }
+    }
+    sim
+}
+
+#[test]
+fn film_on_foundation_compressed_to_half() {
+    let scene = variant(
+        "strip_wrinkles.ron",
+        &[
+            ("frames: 30,", "frames: 60,"),
+            ("keyframes: [(0, 0.0), (30, 0.06)]", "keyframes: [(0, 0.0), (60, 0.5)]"),
+            ("max_iterations: 60,", "max_iterations: 150,"),
+            (
+                "cells: (80, 8), pattern: Equilateral),\n                ),",
+                "cells: (40, 4), pattern: Equilateral),\n                ),",
+            ),
+            (
+                "mesh: Grid(size: (40.0, 4.0), cells: (80, 8), pattern: Equilateral),\n                    material",
+                "mesh: Grid(size: (40.0, 4.0), cells: (40, 4), pattern: Equilateral),\n                    material",
+            ),
+        ],
+    );
+    let mut sim = run_all_converged(&scene);
+    let film = sim.layer_positions("strip", "film");
+    let (lo, hi) = film.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.x), b.max(p.x)));
+    // The pinned ends sit at half the length; wrinkles may lean slightly past them.
+    assert!(((hi - lo) / 0.04 - 0.5).abs() < 0.05, "film extent {}", (hi - lo) / 0.04);
+}
+
+#[test]
+fn a_20_micrometre_film_on_a_millimetre_mesh() {
+    let scene = variant(
+        "strip_wrinkles.ron",
+        &[
+            ("thickness: 0.1),", "thickness: 0.02),"),
+            ("max_iterations: 60,", "max_iterations: 300,"),
+            (
+                "cells: (80, 8), pattern: Equilateral),\n                ),",
+                "cells: (40, 4), pattern: Equilateral),\n                ),",
+            ),
+            (
+                "mesh: Grid(size: (40.0, 4.0), cells: (80, 8), pattern: Equilateral),\n                    material",
+                "mesh: Grid(size: (40.0, 4.0), cells: (40, 4), pattern: Equilateral),\n                    material",
+            ),
+        ],
+    );
+    run_all_converged(&scene);
+}
+
+#[test]
+fn a_solid_slab_compressed_to_half_keeps_every_tet_upright() {
+    let scene = variant(
+        "examples/volume_slab.ron",
+        &[("keyframes: [(0, 0.0), (10, 0.2)]", "keyframes: [(0, 0.0), (10, 0.5)]")],
+    );
+    let mut sim = run_all_converged(&scene);
+    let mut q = sim.world.query::<&skinsim::solve::SolverBody>();
+    let body = q.single(&sim.world).unwrap();
+    let inverted = body
+        .elements
+        .tets
+        .iter()
+        .filter(|t| {
+            let p = t.v.map(|i| body.x[i as usize]);
+            (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]) <= 0.0
+        })
+        .count();
+    assert_eq!(inverted, 0, "Bazant-Hencky must not invert");
+}
+
+#[test]
+fn implicit_euler_with_a_hundred_times_larger_step() {
+    let scene = variant("examples/dynamic_strip.ron", &[("frame_time: 0.001,", "frame_time: 0.1,")]);
+    run_all_converged(&scene);
+}
