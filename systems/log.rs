@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use bevy_ecs::prelude::*;
 use glam::{DVec2, DVec3};
-use skinsim::mesh;
+use skinsim::mesh::{self, shading};
 use skinsim::model::*;
 
 /// Where Rerun data goes (a file, a spawned viewer, a connection, or memory in tests).
@@ -142,63 +142,25 @@ fn render_mesh(
         rm.tris.push(tri);
     }
     let rest: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.1 .0).unwrap_or_default()).collect();
-    rm.rest_area = rm.tris.iter().map(|t| tri_area(&rest, t)).collect();
+    rm.rest_area = rm.tris.iter().map(|t| shading::triangle_area(&rest, t)).collect();
     rm
 }
 
-fn tri_area(p: &[DVec3], t: &[u32; 3]) -> f64 {
-    let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
-    0.5 * (b - a).cross(c - a).length()
-}
-
-/// Colour of an area strain: blue for stretch, red for compression, white at rest (LK14 fig. 6-4).
-/// Saturates at 10 %.
-pub fn strain_colour(strain: f64) -> [u8; 4] {
-    let s = (strain / 0.1).clamp(-1.0, 1.0);
-    let fade = |s: f64| (255.0 * (1.0 - s.abs())).round() as u8;
-    if s >= 0.0 {
-        [fade(s), fade(s), 255, 255]
-    } else {
-        [255, fade(s), fade(s), 255]
-    }
-}
-
 fn log_mesh(rec: &rerun::RecordingStream, path: &str, rm: &mut RenderMesh, pos: &[DVec3]) {
-    let mut normals = vec![DVec3::ZERO; pos.len()];
-    let mut strain = vec![0.0; pos.len()];
-    let mut weight = vec![0.0; pos.len()];
-    for (t, ra) in rm.tris.iter().zip(&rm.rest_area) {
-        let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
-        let n = (b - a).cross(c - a);
-        let s = 0.5 * n.length() / ra - 1.0;
-        for &v in t {
-            normals[v as usize] += n;
-            strain[v as usize] += s;
-            weight[v as usize] += 1.0;
-        }
-    }
-    let f3 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
+    let (normals, strain) = shading::normals_and_strain(pos, &rm.tris, &rm.rest_area);
+    let f3 = |v: &DVec3| [v.x as f32, v.y as f32, v.z as f32];
     if !rm.logged_topology {
-        let _ = rec.log_static(
-            path,
-            &rerun::Mesh3D::update_fields()
-                .with_triangle_indices(rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t))),
-        );
+        let indices = rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t));
+        let _ = rec.log_static(path, &rerun::Mesh3D::update_fields().with_triangle_indices(indices));
         rm.logged_topology = true;
     }
-    let colours: Vec<rerun::Color> = strain
-        .iter()
-        .zip(&weight)
-        .map(|(s, w)| {
-            let [r, g, b, a] = strain_colour(s / f64::max(*w, 1.0));
-            rerun::Color::from_unmultiplied_rgba(r, g, b, a)
-        })
-        .collect();
-    let _ = rec.log(
-        path,
-        &rerun::Mesh3D::update_fields()
-            .with_vertex_positions(pos.iter().map(|p| f3(*p)))
-            .with_vertex_normals(normals.iter().map(|n| f3(n.normalize_or_zero())))
-            .with_vertex_colors(colours),
-    );
+    let colours = strain.iter().map(|s| {
+        let [r, g, b, a] = shading::strain_colour(*s);
+        rerun::Color::from_unmultiplied_rgba(r, g, b, a)
+    });
+    let mesh = rerun::Mesh3D::update_fields()
+        .with_vertex_positions(pos.iter().map(f3))
+        .with_vertex_normals(normals.iter().map(f3))
+        .with_vertex_colors(colours);
+    let _ = rec.log(path, &mesh);
 }

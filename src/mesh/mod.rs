@@ -2,6 +2,7 @@
 
 pub mod generate;
 pub mod obj;
+pub mod shading;
 pub mod topology;
 
 pub use generate::{grid, tet_slab, GridPattern};
