@@ -122,6 +122,7 @@ fn newton(
     let mut grad = vec![0.0; n];
     let mut values = vec![0.0; pattern.nnz()];
     let mut dx = vec![0.0; n];
+    let mut scratch = Vec::new();
     let mut out = FrameOutcome::default();
     let mut residual;
     // H15's adaptive policy: project until the gradient has fallen below ADAPTIVE_SWITCH, then
@@ -209,21 +210,8 @@ fn newton(
                 projecting = true; // H15: fall back to the projected Hessian
                 continue;
             }
-            let mean_diag = pattern.diag.iter().map(|&d| values[d as usize].abs()).sum::<f64>() / n as f64;
-            let mut shift = 1e-8 * mean_diag.max(f64::MIN_POSITIVE);
-            let mut ok = false;
-            for _ in 0..8 {
-                for &d in &pattern.diag {
-                    values[d as usize] += shift;
-                }
-                if chol.factorize(pattern, &values).is_ok() {
-                    ok = true;
-                    break;
-                }
-                shift *= 100.0;
-            }
             out.regularized += 1;
-            if !ok {
+            if factorize_shifted(chol, pattern, &values, &mut scratch, 1e-8, 100.0, 8).is_none() {
                 return Err("the Hessian could not be factorized even with a diagonal shift".into());
             }
         }
@@ -302,24 +290,8 @@ fn leave_saddle(
         return None;
     }
     let n = pattern.n;
-    let mean_diag = pattern.diag.iter().map(|&d| h[d as usize].abs()).sum::<f64>() / n as f64;
-    let mut shifted = h.to_vec();
-    let mut sigma = 1e-6 * mean_diag.max(f64::MIN_POSITIVE);
-    let mut ok = false;
-    for _ in 0..14 {
-        shifted.copy_from_slice(h);
-        for &d in &pattern.diag {
-            shifted[d as usize] += sigma;
-        }
-        if chol.factorize(pattern, &shifted).is_ok() {
-            ok = true;
-            break;
-        }
-        sigma *= 4.0;
-    }
-    if !ok {
-        return None;
-    }
+    let mean_diag = mean_abs_diagonal(pattern, h);
+    factorize_shifted(chol, pattern, h, &mut Vec::new(), 1e-6, 4.0, 14)?;
     // Inverse iteration: (H + sigma I)^-1 amplifies the eigenvector of the lowest eigenvalue.
     let mut y: Vec<f64> = (0..n).map(|i| ((i as f64 + 1.0) * 12.9898).sin().fract() - 0.5).collect();
     for _ in 0..16 {
@@ -353,6 +325,36 @@ fn leave_saddle(
         }
     }
     best.map(|b| b.1)
+}
+
+fn mean_abs_diagonal(pattern: &Pattern, h: &[f64]) -> f64 {
+    pattern.diag.iter().map(|&d| h[d as usize].abs()).sum::<f64>() / pattern.n.max(1) as f64
+}
+
+/// Factorizes H + sigma I for the smallest sigma = first x mean|diag| x growth^k (k < tries)
+/// that is positive definite; the shifted values go to `scratch`. Returns sigma.
+fn factorize_shifted(
+    chol: &mut CholeskySolver,
+    pattern: &Pattern,
+    h: &[f64],
+    scratch: &mut Vec<f64>,
+    first: f64,
+    growth: f64,
+    tries: u32,
+) -> Option<f64> {
+    let mut sigma = first * mean_abs_diagonal(pattern, h).max(f64::MIN_POSITIVE);
+    for _ in 0..tries {
+        scratch.clear();
+        scratch.extend_from_slice(h);
+        for &d in &pattern.diag {
+            scratch[d as usize] += sigma;
+        }
+        if chol.factorize(pattern, scratch).is_ok() {
+            return Some(sigma);
+        }
+        sigma *= growth;
+    }
+    None
 }
 
 /// y = H x for the symmetric matrix whose lower triangle is stored in the pattern.

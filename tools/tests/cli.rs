@@ -38,6 +38,16 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     p
 }
 
+/// `skinsim run --quiet --no-rerun --export obj --out <dir>/out <scene>`.
+fn run_with_obj(dir: &Path, scene: &Path) -> std::process::Output {
+    skinsim()
+        .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--out"])
+        .arg(dir.join("out"))
+        .arg(scene)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn check_accepts_good_and_refuses_bad_input_with_status_2() {
     let d = scratch("check");
@@ -120,12 +130,7 @@ fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
         "s.ron",
         &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"),
     );
-    let out = skinsim()
-        .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--out"])
-        .arg(d.join("out"))
-        .arg(&s)
-        .output()
-        .unwrap();
+    let out = run_with_obj(&d, &s);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("frame 3") && err.contains("\"sheet\""), "{err}");
@@ -143,12 +148,7 @@ fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
 fn analyze_reports_wavelength_and_amplitude_of_exported_frames() {
     let d = scratch("analyze");
     let s = write(&d, "s.ron", &scene("10.0", 4));
-    let out = skinsim()
-        .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--out"])
-        .arg(d.join("out"))
-        .arg(&s)
-        .output()
-        .unwrap();
+    let out = run_with_obj(&d, &s);
     assert_eq!(out.status.code(), Some(0));
     let out = skinsim().arg("analyze").arg(d.join("out/obj/sheet/film")).output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
