@@ -7,6 +7,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
+use skinsim::physics::Lame;
 use skinsim::solve::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 
 type LayerItems<'a> = (
@@ -27,9 +28,9 @@ pub fn gather_bodies(
     layers: Query<LayerItems>,
     vertices: Query<(&Position, &Velocity, &Mass, &Prescribed)>,
     ties: Query<&Tied>,
-    faces: Query<(&FaceVerts, Option<&FaceRest>)>,
+    faces: Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
     hinges: Query<(&EdgeVerts, &Hinge)>,
-    tets: Query<(&TetVerts, &TetRestShape)>,
+    tets: Query<(&TetVerts, &TetRestShape, Option<&ModulusScale>)>,
     springs: Query<&Spring>,
 ) {
     for (patch_layers, mut body) in &mut patches {
@@ -83,9 +84,9 @@ fn rebuild(
     layers: &Query<LayerItems>,
     vertices: &Query<(&Position, &Velocity, &Mass, &Prescribed)>,
     ties: &Query<&Tied>,
-    faces: &Query<(&FaceVerts, Option<&FaceRest>)>,
+    faces: &Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
     hinges: &Query<(&EdgeVerts, &Hinge)>,
-    tets: &Query<(&TetVerts, &TetRestShape)>,
+    tets: &Query<(&TetVerts, &TetRestShape, Option<&ModulusScale>)>,
     springs: &Query<&Spring>,
 ) {
     let mut index: HashMap<Entity, u32> = HashMap::new();
@@ -130,12 +131,12 @@ fn rebuild(
             face_count += lf.entities().len();
             if let (LayerKind::Shell, Some(m)) = (layer.kind, material) {
                 for &f in lf.entities() {
-                    if let Ok((fv, Some(rest))) = faces.get(f) {
+                    if let Ok((fv, Some(rest), scale)) = faces.get(f) {
                         el.membranes.push(MembraneElem {
                             v: fv.0.map(|e| idx(&e)),
                             rest: rest.0,
                             model: m.model,
-                            lame: m.lame,
+                            lame: scaled(m.lame, scale),
                         });
                     }
                 }
@@ -153,8 +154,9 @@ fn rebuild(
         if let (Some(lt), Some(m)) = (ltets, material) {
             tet_count += lt.entities().len();
             for &t in lt.entities() {
-                if let Ok((tv, rest)) = tets.get(t) {
-                    el.tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame: m.lame });
+                if let Ok((tv, rest, scale)) = tets.get(t) {
+                    let lame = scaled(m.lame, scale);
+                    el.tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame });
                 }
             }
         }
@@ -172,4 +174,9 @@ fn rebuild(
     body.face_count = face_count;
     body.tet_count = tet_count;
     body.invalidate_pattern();
+}
+
+/// The layer's Lame parameters times an element's modulus factor (both scale with E).
+fn scaled(lame: Lame, scale: Option<&ModulusScale>) -> Lame {
+    scale.map_or(lame, |s| Lame { mu: lame.mu * s.0, lambda: lame.lambda * s.0 })
 }

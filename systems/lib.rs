@@ -3,6 +3,7 @@
 
 pub mod assemble;
 pub mod blend_shapes;
+pub mod capture;
 pub mod log;
 pub mod schedule;
 pub mod simulation;

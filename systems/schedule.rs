@@ -4,10 +4,10 @@
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
-use skinsim::model::{PatchMotion, Stage, Timings};
+use skinsim::model::{PatchCaptures, PatchMotion, Stage, Timings};
 
 use crate::log::{log_frame, wants_logging};
-use crate::{assemble, blend_shapes, solve, writeback};
+use crate::{assemble, blend_shapes, capture, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Frame;
@@ -37,7 +37,10 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(timed(Stage::BlendShapes, blend_shapes::apply_motions));
     s.add_systems(timed(Stage::Assemble, assemble::gather_bodies));
     s.add_systems(timed(Stage::Solve, solve::solve_patches));
-    s.add_systems(timed(Stage::Writeback, writeback::scatter_bodies));
+    s.add_systems(timed(
+        Stage::Writeback,
+        (writeback::scatter_bodies, capture::capture_prestrain.run_if(any_with_component::<PatchCaptures>)).chain(),
+    ));
     s.add_systems(timed(Stage::Log, log_frame));
     s
 }

@@ -66,7 +66,33 @@ impl Simulation {
         self.world.resource::<SimFailure>().0.clone()
     }
 
-    /// Positions of a layer's vertices in spawn order.
+    /// Every vertex a layer's elements use (its own and those it shares with the layer below),
+    /// as (material position, position), in first-use order.
+    pub fn layer_points(&mut self, patch: &str, layer: &str) -> Vec<(glam::DVec2, glam::DVec3)> {
+        let Some(l) = self.find_layer(patch, layer) else { return Vec::new() };
+        let mut used: Vec<Entity> =
+            self.world.get::<LayerVertices>(l).map(|v| v.entities().to_vec()).unwrap_or_default();
+        if let Some(faces) = self.world.get::<LayerFaces>(l) {
+            used.extend(faces.entities().iter().filter_map(|&f| self.world.get::<FaceVerts>(f)).flat_map(|f| f.0));
+        }
+        if let Some(tets) = self.world.get::<LayerTets>(l) {
+            used.extend(tets.entities().iter().filter_map(|&t| self.world.get::<TetVerts>(t)).flat_map(|t| t.0));
+        }
+        let mut seen = std::collections::HashSet::new();
+        used.retain(|e| seen.insert(*e));
+        used.iter()
+            .map(|&e| (self.world.get::<MaterialPos>(e).unwrap().0, self.world.get::<Position>(e).unwrap().0))
+            .collect()
+    }
+
+    fn find_layer(&mut self, patch: &str, layer: &str) -> Option<Entity> {
+        let mut q = self.world.query::<(Entity, &Layer, &LayerOf)>();
+        let found: Vec<(Entity, Entity)> =
+            q.iter(&self.world).filter(|(_, l, _)| l.name == layer).map(|(e, _, of)| (e, of.0)).collect();
+        found.into_iter().find(|(_, p)| self.world.get::<Patch>(*p).is_some_and(|p| p.name == patch)).map(|(e, _)| e)
+    }
+
+    /// Positions of a layer's own vertices in spawn order.
     pub fn layer_positions(&mut self, patch: &str, layer: &str) -> Vec<glam::DVec3> {
         let mut q = self.world.query::<(&Layer, &LayerOf, &LayerVertices)>();
         let mut pq = self.world.query::<&Patch>();

@@ -191,3 +191,65 @@ fn layers_must_stack_on_an_earlier_volume_slab() {
     let ok = base.replace("LAST", r#"Layer(name: "sc", kind: Shell, mesh: SurfaceOf(layer: "dermis"), material: (young: 1.0, poisson: 0.3, thickness: 0.01))"#);
     load_str(&ok, Path::new("scene.ron")).unwrap();
 }
+
+const LAYERED: &str = r#"Scene(name: "s", frames: 2, units: (length: Millimetre, stress: KiloPascal), patches: [Patch(name: "p", layers: [
+    Layer(name: "hypodermis", kind: Volume, mesh: TetSlab(size: (4.0, 2.0), cells: (4, 2), depth: 1.0, elements: 2, top: -1.0),
+          material: (young: 13.0, poisson: 0.4)),
+    DERMIS,
+    Layer(name: "corneum", kind: Shell, mesh: SurfaceOf(layer: "dermis"),
+          material: (young: 1000.0, poisson: 0.495, thickness: 0.02), bending: (model: Tan)SC_EXTRA),
+], drivers: [DRIVERS])])"#;
+
+fn layered(dermis: &str, sc_extra: &str, drivers: &str) -> String {
+    LAYERED.replace("DERMIS", dermis).replace("SC_EXTRA", sc_extra).replace("DRIVERS", drivers)
+}
+
+const DERMIS_ON: &str = r#"Layer(name: "dermis", kind: Volume, mesh: TetOn(layer: "hypodermis", depth: 1.0, elements: 3), material: (young: 1.0, poisson: 0.4))"#;
+
+#[test]
+fn layers_whose_interfaces_do_not_match() {
+    load_str(&layered(DERMIS_ON, "", ""), Path::new("scene.ron")).unwrap();
+    // The dermis as its own slab on the hypodermis' top, with other cells: not connected.
+    let loose = r#"Layer(name: "dermis", kind: Volume, mesh: TetSlab(size: (4.0, 2.0), cells: (8, 4), depth: 1.0, elements: 3), material: (young: 1.0, poisson: 0.4))"#;
+    let e = err(&layered(loose, "", ""));
+    assert_mentions(&e, &["layers[1] (\"dermis\").mesh", "interface", "\"hypodermis\"", "TetOn"]);
+    // Same cells but separate vertices: still two unconnected volumes.
+    let e = err(&layered(&loose.replace("(8, 4)", "(4, 2)"), "", ""));
+    assert_mentions(&e, &["\"dermis\"", "does not match"]);
+    // A shell over a layer that is not a volume slab.
+    let e = err(&layered(DERMIS_ON, "", "").replace("SurfaceOf(layer: \"dermis\")", "SurfaceOf(layer: \"corneum\")"));
+    assert_mentions(&e, &["layers[2] (\"corneum\").mesh.layer", "not a TetSlab or TetOn volume"]);
+}
+
+#[test]
+fn prestrain_with_a_non_positive_determinant() {
+    let e = err(&layered(DERMIS_ON, ", prestrain: (stretch: (1.02, 0.0, 1.0))", ""));
+    assert_mentions(&e, &["layers[2] (\"corneum\").prestrain.stretch", "determinant 0"]);
+    let e = err(&layered(
+        &DERMIS_ON.replace("poisson: 0.4)", "poisson: 0.4), prestrain: (stretch: (1.0, 1.0, -1.0))"),
+        "",
+        "",
+    ));
+    assert_mentions(&e, &["layers[1] (\"dermis\").prestrain.stretch", "determinant -1"]);
+    // A rest curvature needs hinges.
+    let e = err(&layered(DERMIS_ON, "", "").replace("bending: (model: Tan)", "prestrain: (curvature: 0.1)"));
+    assert_mentions(&e, &["corneum\").prestrain.curvature", "bending"]);
+    // A missing map names the map file.
+    let e = err(&layered(DERMIS_ON, ", prestrain: (stretch: (1.02, 1.02, 1.0), map: \"nowhere.png\")", ""));
+    assert_mentions(&e, &["nowhere.png", "prestrain.map"]);
+}
+
+#[test]
+fn randomization_that_makes_a_modulus_negative() {
+    let e = err(&layered(DERMIS_ON, ", randomize: (amplitude: 1.2, seed: 1)", ""));
+    assert_mentions(&e, &["layers[2] (\"corneum\").randomize.amplitude", "positive", "\"corneum\" reach -200"]);
+    load_str(&layered(DERMIS_ON, ", randomize: (amplitude: 0.5, seed: 1)", ""), Path::new("scene.ron")).unwrap();
+}
+
+#[test]
+fn a_capture_outside_the_run_or_on_a_kinematic_layer() {
+    let e = err(&layered(DERMIS_ON, "", r#"Capture(layers: ["corneum"], frame: 9)"#));
+    assert_mentions(&e, &["drivers[0].frame", "1 to 2"]);
+    let e = err(&layered(DERMIS_ON, "", r#"Capture(layers: ["corneum"], frame: 1, fraction: 1.5)"#));
+    assert_mentions(&e, &["drivers[0].fraction"]);
+}

@@ -79,3 +79,17 @@ pub struct PatchMotion {
     pub motions: Vec<Motion>,
     pub centre: DVec3,
 }
+
+/// A prestrain capture (H15 4.3): after the solve of `frame`, `fraction` (times the map at the
+/// element, if any) of the current state of `layers` becomes their rest state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Capture {
+    pub layers: Vec<Entity>,
+    pub frame: u32,
+    pub fraction: f64,
+    pub map: Option<super::WeightMap>,
+}
+
+/// The captures of a patch.
+#[derive(Component, Clone, Debug, Default)]
+pub struct PatchCaptures(pub Vec<Capture>);

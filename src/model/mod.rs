@@ -9,8 +9,10 @@ use crate::physics::{ConstitutiveModel, HingeModel, HingeRest, Lame};
 use crate::scene::schema::SolverSpec;
 
 mod drivers;
+mod maps;
 mod resources;
 pub use drivers::*;
+pub use maps::*;
 pub use resources::*;
 
 // ---------------------------------------------------------------- patches and layers
@@ -190,9 +192,15 @@ pub struct FaceVerts(pub [Entity; 3]);
 #[derive(Component, Clone, Copy, Debug)]
 pub struct FaceRest(pub crate::physics::membrane::MembraneRest);
 
-/// Membrane prestrain F0 (H15 4.3); identity when absent.
+/// Membrane prestrain F0 (H15 4.3) in the triangle's own rest frame (that of FaceRest);
+/// identity when absent. FaceRest already holds it folded in; this is the record.
 #[derive(Component, Clone, Copy, Debug)]
 pub struct FacePrestrain(pub DMat2);
+
+/// A per-element factor on the layer's Young's modulus (randomized properties, H15 6.2);
+/// 1 when absent. On faces and tets.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct ModulusScale(pub f64);
 
 /// Tet -> Layer.
 #[derive(Component, Clone, Copy, Debug)]
@@ -215,7 +223,7 @@ pub struct TetVerts(pub [Entity; 4]);
 #[derive(Component, Clone, Copy, Debug)]
 pub struct TetRestShape(pub crate::physics::tet::TetRest);
 
-/// Tetrahedron prestrain F0; identity when absent.
+/// Tetrahedron prestrain F0 (world axes); identity when absent. TetRestShape holds it folded in.
 #[derive(Component, Clone, Copy, Debug)]
 pub struct TetPrestrain(pub DMat3);
 

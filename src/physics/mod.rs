@@ -10,6 +10,7 @@ pub mod dual;
 pub mod hinge;
 pub mod material;
 pub mod membrane;
+pub mod prestrain;
 pub mod psd;
 pub mod spring;
 pub mod tet;

@@ -8,7 +8,7 @@ use glam::{DVec2, DVec3};
 use super::error::SceneError;
 use super::schema::*;
 use crate::mesh::{self, SurfaceMesh, TetMesh};
-use crate::model::LayerKind;
+use crate::model::{LayerKind, WeightMap};
 use crate::physics::Lame;
 
 /// A validated scene with its meshes built, in SI units.
@@ -54,6 +54,29 @@ pub struct BuiltLayer {
     pub material: Option<crate::model::Material>,
     pub thickness: Option<f64>,
     pub bending: Option<crate::model::Bending>,
+    pub prestrain: Option<BuiltPrestrain>,
+    /// (relative amplitude, seed) of the per-element modulus randomization.
+    pub randomize: Option<(f64, u64)>,
+}
+
+/// A layer's prestrain, in SI units.
+#[derive(Clone, Debug)]
+pub struct BuiltPrestrain {
+    pub stretch: DVec3,
+    pub map: Option<WeightMap>,
+    /// Rest curvature (1/m) along `along` (0 = x, 1 = y).
+    pub curvature: f64,
+    pub along: usize,
+}
+
+impl LayerMesh {
+    /// Material (2D) positions of the mesh's vertices, as spawned into `MaterialPos`.
+    pub fn material_positions(&self) -> Vec<DVec2> {
+        match self {
+            LayerMesh::Surface(m) => m.uv.clone(),
+            LayerMesh::Volume(m) => m.rest.iter().map(|p| p.truncate()).collect(),
+        }
+    }
 }
 
 /// The structured grid of a tetrahedral slab (SI, offset included).
@@ -124,6 +147,13 @@ pub enum BuiltDriver {
         axis: usize,
         ties: Vec<Vec<(u32, u32)>>,
         seams: Vec<Vec<SeamHinge>>,
+    },
+    Capture {
+        layers: Vec<usize>,
+        frame: u32,
+        fraction: f64,
+        /// Per listed layer: the painted fraction over its rectangle.
+        maps: Vec<Option<WeightMap>>,
     },
 }
 
@@ -218,6 +248,7 @@ impl Builder {
             }
             layers.push(self.layer(&lat, l, len, stress, offset, &layers, &index)?);
         }
+        self.check_interfaces(&at, p, &layers)?;
         let find = |field: String, name: &str| -> Result<usize, SceneError> {
             index.get(name).copied().ok_or_else(|| self.err(field, format!("no layer named \"{name}\" in this patch")))
         };
@@ -299,6 +330,31 @@ impl Builder {
                         })
                         .collect();
                     BuiltDriver::Periodic { layers: layers_i, axis: axis.index(), ties, seams }
+                }
+                DriverSpec::Capture { layers: ls, frame, fraction, map } => {
+                    if !(*fraction >= 0.0 && *fraction <= 1.0) {
+                        return Err(self.err(format!("{dat}.fraction"), format!("must be in [0, 1] (got {fraction})")));
+                    }
+                    if *frame == 0 || *frame > scene.frames {
+                        return Err(self.err(
+                            format!("{dat}.frame"),
+                            format!("must be a computed frame, 1 to {} (got {frame})", scene.frames),
+                        ));
+                    }
+                    let layers_i: Vec<usize> =
+                        ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                    if let Some(&li) = layers_i.iter().find(|&&li| layers[li].kind == LayerKind::Kinematic) {
+                        return Err(self.err(
+                            format!("{dat}.layers"),
+                            format!("\"{}\" is kinematic: it has no rest state to capture", layers[li].name),
+                        ));
+                    }
+                    let maps = layers_i
+                        .iter()
+                        .map(|&li| map.as_ref().map(|m| self.weight_map(&format!("{dat}.map"), m, &layers[li].mesh)))
+                        .map(Option::transpose)
+                        .collect::<Result<_, _>>()?;
+                    BuiltDriver::Capture { layers: layers_i, frame: *frame, fraction: *fraction, maps }
                 }
                 DriverSpec::Attach { layer, to, stiffness } => {
                     let a = find(format!("{dat}.layer"), layer)?;
@@ -394,7 +450,130 @@ impl Builder {
                 return Err(self.err(format!("{at}.bending"), format!("only shells bend ({kind:?} layer)")))
             }
         };
-        Ok(BuiltLayer { name: l.name.clone(), kind: l.kind, mesh, shared, slab, material, thickness, bending })
+        let prestrain = match &l.prestrain {
+            None => None,
+            Some(_) if l.kind == LayerKind::Kinematic => {
+                return Err(self.err(format!("{at}.prestrain"), "a kinematic layer has no rest state to prestrain"))
+            }
+            Some(p) => Some(self.prestrain(&format!("{at}.prestrain"), p, l.kind, bending.is_some(), len, &mesh)?),
+        };
+        let randomize = match &l.randomize {
+            None => None,
+            Some(_) if l.kind == LayerKind::Kinematic => {
+                return Err(self.err(format!("{at}.randomize"), "a kinematic layer has no material to randomize"))
+            }
+            Some(r) if !(r.amplitude >= 0.0 && r.amplitude < 1.0) => {
+                return Err(self.err(
+                    format!("{at}.randomize.amplitude"),
+                    format!(
+                        "E (1 + amplitude u) with u in [-1, 1] must stay positive: the amplitude must be in [0, 1) \
+                         (got {}, which makes the Young's modulus of \"{}\" reach {:.4})",
+                        r.amplitude,
+                        l.name,
+                        material.map_or(0.0, |m| m.young / stress) * (1.0 - r.amplitude)
+                    ),
+                ))
+            }
+            Some(r) => Some((r.amplitude, r.seed)),
+        };
+        Ok(BuiltLayer {
+            name: l.name.clone(),
+            kind: l.kind,
+            mesh,
+            shared,
+            slab,
+            material,
+            thickness,
+            bending,
+            prestrain,
+            randomize,
+        })
+    }
+
+    fn prestrain(
+        &self,
+        at: &str,
+        p: &PrestrainSpec,
+        kind: LayerKind,
+        bends: bool,
+        len: f64,
+        mesh: &LayerMesh,
+    ) -> Result<BuiltPrestrain, SceneError> {
+        let stretch = DVec3::new(p.stretch.0, p.stretch.1, p.stretch.2);
+        let det = stretch.x * stretch.y * if kind == LayerKind::Shell { 1.0 } else { stretch.z };
+        if !stretch.is_finite() || stretch.min_element() <= 0.0 {
+            return Err(self.err(
+                format!("{at}.stretch"),
+                format!(
+                    "F0 = diag{:?} has determinant {det}: a prestrain must keep every stretch (and volume) positive",
+                    p.stretch
+                ),
+            ));
+        }
+        if !p.curvature.is_finite() {
+            return Err(self.err(format!("{at}.curvature"), "must be finite"));
+        }
+        if p.curvature != 0.0 && !(kind == LayerKind::Shell && bends) {
+            return Err(self.err(format!("{at}.curvature"), "a rest curvature needs a shell layer with bending"));
+        }
+        if p.curvature_along == Axis::Z {
+            return Err(self.err(format!("{at}.curvature_along"), "the curvature runs along X or Y"));
+        }
+        let map = p.map.as_ref().map(|m| self.weight_map(&format!("{at}.map"), m, mesh)).transpose()?;
+        Ok(BuiltPrestrain { stretch, map, curvature: p.curvature / len, along: p.curvature_along.index() })
+    }
+
+    /// Volume layers that touch (one's bottom on another's top) must share their interface
+    /// vertices (TetOn): two unconnected slabs would slide through each other.
+    fn check_interfaces(&self, at: &str, p: &PatchSpec, layers: &[BuiltLayer]) -> Result<(), SceneError> {
+        let volumes: Vec<(usize, DVec3, DVec3)> = layers
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.kind == LayerKind::Volume)
+            .map(|(i, l)| {
+                let (lo, hi) = bbox(l.mesh.rest());
+                (i, lo, hi)
+            })
+            .collect();
+        for &(b, blo, bhi) in &volumes {
+            for &(a, alo, ahi) in volumes.iter().filter(|v| v.0 < b) {
+                let tol = 1e-9 * (bhi - blo).length().max((ahi - alo).length());
+                let overlap = (bhi.x.min(ahi.x) - blo.x.max(alo.x)).min(bhi.y.min(ahi.y) - blo.y.max(alo.y));
+                let touch = (blo.z - ahi.z).abs() <= tol || (bhi.z - alo.z).abs() <= tol;
+                let shares = layers[b].shared.iter().flatten().any(|s| s.0 == a)
+                    || layers[a].shared.iter().flatten().any(|s| s.0 == b);
+                if touch && overlap > tol && !shares {
+                    let (na, nb) = (&layers[a].name, &layers[b].name);
+                    let cells = |i: usize| layers[i].slab.map(|s| format!("{:?} cells", s.cells)).unwrap_or_default();
+                    return Err(self.err(
+                        format!("{at}.layers[{b}] (\"{}\").mesh", p.layers[b].name),
+                        format!(
+                            "the interface between \"{nb}\" ({}) and \"{na}\" ({}) does not match: the two \
+                             volumes touch at z = {:.6} m without sharing vertices; stack \"{nb}\" with \
+                             TetOn(layer: \"{na}\", ...) so that they share the interface",
+                            cells(b),
+                            cells(a),
+                            if (blo.z - ahi.z).abs() <= tol { blo.z } else { bhi.z },
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Loads a greyscale map (relative to the scene file) spanning the mesh's material rectangle.
+    fn weight_map(&self, field: &str, path: &str, mesh: &LayerMesh) -> Result<WeightMap, SceneError> {
+        let full = self.dir.join(path);
+        let img = image::open(&full)
+            .map_err(|e| SceneError::at_field(&full, field, format!("cannot read the map image: {e}")))?
+            .to_luma16();
+        let (width, height) = (img.width() as usize, img.height() as usize);
+        let values = img.pixels().map(|p| p.0[0] as f32 / 65535.0).collect();
+        let uv = mesh.material_positions();
+        let lo = uv.iter().fold(DVec2::INFINITY, |a, p| a.min(*p));
+        let hi = uv.iter().fold(DVec2::NEG_INFINITY, |a, p| a.max(*p));
+        Ok(WeightMap { width, height, values, lo, hi })
     }
 
     #[allow(clippy::type_complexity)]

@@ -170,6 +170,45 @@ pub struct LayerSpec {
     /// Shell layers only; no hinges without it.
     #[serde(default)]
     pub bending: Option<BendingSpec>,
+    /// A stored prestrain (H15 4.3): F0 per element, and for shells a rest curvature.
+    #[serde(default)]
+    pub prestrain: Option<PrestrainSpec>,
+    /// Per-element Young's modulus E (1 + amplitude u), u seeded-uniform in [-1, 1]: breaks the
+    /// symmetry of uniform compression (H15 6.2, fig. 6.7b).
+    #[serde(default)]
+    pub randomize: Option<RandomizeSpec>,
+}
+
+/// Prestrain of a layer (H15 4.3, eq. 4.8: F = dx/dX F0).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Prestrain")]
+pub struct PrestrainSpec {
+    /// Principal stretches of F0 along the material x, y, z axes (1.02: stretched 2 % at rest,
+    /// H15 table 6.1). Shells use the in-plane part.
+    #[serde(default = "unit_stretch")]
+    pub stretch: (f64, f64, f64),
+    /// A greyscale PNG over the layer's rectangle (path relative to the scene; white = 1):
+    /// F0 = I + w (S - I) with w the map at the element's centre.
+    #[serde(default)]
+    pub map: Option<String>,
+    /// Shells: rest curvature (1 / length unit) that replaces the flat rest bend of every hinge,
+    /// curving along `curvature_along` (the shape of a cylinder across that axis).
+    #[serde(default)]
+    pub curvature: f64,
+    #[serde(default)]
+    pub curvature_along: Axis,
+}
+
+fn unit_stretch() -> (f64, f64, f64) {
+    (1.0, 1.0, 1.0)
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Randomize")]
+pub struct RandomizeSpec {
+    /// Relative amplitude, in [0, 1): E stays positive.
+    pub amplitude: f64,
+    pub seed: u64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -339,6 +378,18 @@ pub enum DriverSpec {
         layers: Vec<String>,
         #[serde(default)]
         axis: Axis,
+    },
+    /// Makes wrinkles permanent (H15 4.3): after the solve of `frame`, `fraction` of each
+    /// element's current stretch becomes its prestrain (F0 <- F0 U^-fraction) and each hinge's
+    /// rest bend moves that fraction towards its current bend. `map` paints the fraction
+    /// (greyscale PNG over the layer's rectangle, white = 1).
+    Capture {
+        layers: Vec<String>,
+        frame: u32,
+        #[serde(default = "default_one")]
+        fraction: f64,
+        #[serde(default)]
+        map: Option<String>,
     },
 }
 

@@ -1,6 +1,8 @@
 //! Spawning a built scene into a World: one entity per patch, layer, vertex, edge, face, tet
 //! and spring, with their relationships.
 
+use std::collections::HashMap;
+
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DMat3, DVec2, DVec3};
 use rand::{Rng, SeedableRng};
@@ -10,6 +12,7 @@ use crate::mesh;
 use crate::model::*;
 use crate::physics::hinge::HingeRest;
 use crate::physics::membrane::MembraneRest;
+use crate::physics::prestrain;
 use crate::physics::tet::TetRest;
 
 /// Spawns every patch of the scene and inserts the clock. Returns the patch entities.
@@ -74,6 +77,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         layer_vertices.push(verts);
     }
     let mut motion = PatchMotion::default();
+    let mut captures = Vec::new();
     let (lo, hi) = all_rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), q| (a.min(*q), b.max(*q)));
     motion.centre = 0.5 * (lo + hi);
     for d in &p.drivers {
@@ -143,11 +147,24 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                     }
                 }
             }
+            BuiltDriver::Capture { layers: ls, frame, fraction, maps } => {
+                for (&l, map) in ls.iter().zip(maps) {
+                    captures.push(Capture {
+                        layers: vec![layers[l]],
+                        frame: *frame,
+                        fraction: *fraction,
+                        map: map.clone(),
+                    });
+                }
+            }
             BuiltDriver::Pin { .. } => {}
         }
     }
     if !motion.motions.is_empty() {
         world.entity_mut(patch).insert(motion);
+    }
+    if !captures.is_empty() {
+        world.entity_mut(patch).insert(PatchCaptures(captures));
     }
     world.entity_mut(patch).insert(crate::solve::SolverBody { topology_key: u64::MAX, ..Default::default() });
     patch
@@ -176,10 +193,7 @@ fn spawn_layer(
     }
     let layer = e.id();
     let rest = l.mesh.rest();
-    let uv: Vec<DVec2> = match &l.mesh {
-        LayerMesh::Surface(m) => m.uv.clone(),
-        LayerMesh::Volume(m) => m.rest.iter().map(|p| p.truncate()).collect(),
-    };
+    let uv = l.mesh.material_positions();
     let own: Vec<usize> = (0..rest.len()).filter(|&i| owners[i].is_none()).collect();
     let spawned: Vec<Entity> = world
         .spawn_batch(own.iter().map(|&i| {
@@ -197,28 +211,59 @@ fn spawn_layer(
     let mut next = spawned.into_iter();
     let verts: Vec<Entity> =
         owners.iter().map(|o| o.unwrap_or_else(|| next.next().expect("one per own vertex"))).collect();
+    let stretch_at = |centre: DVec2| -> Option<DVec3> {
+        let p = l.prestrain.as_ref()?;
+        Some(p.map.as_ref().map_or(p.stretch, |m| prestrain::weighted_stretch(p.stretch, m.sample(centre))))
+    };
+    let mut rng = l.randomize.map(|(a, seed)| (a, rand_pcg::Pcg64::seed_from_u64(seed)));
+    let mut modulus = |n: usize| -> Option<Vec<f64>> {
+        let (a, rng) = rng.as_mut()?;
+        Some((0..n).map(|_| 1.0 + *a * rng.random_range(-1.0..=1.0)).collect())
+    };
     match &l.mesh {
         LayerMesh::Surface(m) => {
             let shell = l.kind == LayerKind::Shell;
             let h = l.thickness.unwrap_or(0.0);
-            let faces: Vec<_> = m
-                .faces
-                .iter()
-                .map(|f| {
-                    let vs = f.map(|i| verts[i as usize]);
-                    let rest = shell.then(|| {
-                        let tri = f.map(|i| m.rest[i as usize]);
-                        FaceRest(MembraneRest::from_rest_triangle(tri, h, DMat2::IDENTITY).expect("checked mesh"))
-                    });
-                    (FaceVerts(vs), FaceOf(layer), rest)
-                })
-                .collect();
-            for (fv, of, rest) in faces {
-                let mut e = world.spawn((fv, of));
-                if let Some(r) = rest {
-                    e.insert(r);
+            let scale = modulus(if shell { m.faces.len() } else { 0 });
+            for (fi, f) in m.faces.iter().enumerate() {
+                let mut e = world.spawn((FaceVerts(f.map(|i| verts[i as usize])), FaceOf(layer)));
+                if !shell {
+                    continue;
+                }
+                let tri = f.map(|i| m.rest[i as usize]);
+                let centre = f.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 3.0;
+                let f0 = stretch_at(centre).map(|s| prestrain::membrane_f0(tri, s));
+                let rest =
+                    MembraneRest::from_rest_triangle(tri, h, f0.unwrap_or(DMat2::IDENTITY)).expect("checked mesh");
+                e.insert(FaceRest(rest));
+                if let Some(f0) = f0 {
+                    e.insert(FacePrestrain(f0));
+                }
+                if let Some(s) = &scale {
+                    e.insert(ModulusScale(s[fi]));
                 }
             }
+            // A hinge's stiffness follows its faces' moduli (mean of the two).
+            let face_index: HashMap<[u32; 3], usize> = m
+                .faces
+                .iter()
+                .enumerate()
+                .map(|(i, f)| {
+                    let mut k = *f;
+                    k.sort_unstable();
+                    (k, i)
+                })
+                .collect();
+            let hinge_scale = |q: [u32; 4]| -> f64 {
+                let Some(s) = &scale else { return 1.0 };
+                let face = |a: u32, b: u32, c: u32| {
+                    let mut k = [a, b, c];
+                    k.sort_unstable();
+                    face_index.get(&k).map_or(1.0, |&i| s[i])
+                };
+                0.5 * (face(q[0], q[1], q[2]) + face(q[0], q[1], q[3]))
+            };
+            let curvature = l.prestrain.as_ref().map_or((0.0, 0), |p| (p.curvature, p.along));
             if shell {
                 let bending = l.bending;
                 let batch: Vec<_> = mesh::edges(&m.faces)
@@ -227,9 +272,11 @@ fn spawn_layer(
                         let hinge = match (bending, e.is_interior()) {
                             (Some(b), true) => {
                                 let q = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]];
+                                let k_b = b.stiffness * hinge_scale(q);
+                                let x = q.map(|i| m.rest[i as usize]);
                                 Some(Hinge {
                                     opposite: [verts[q[2] as usize], verts[q[3] as usize]],
-                                    rest: HingeRest::from_rest(b.model, b.stiffness, q.map(|i| m.rest[i as usize])),
+                                    rest: prestrain::hinge_with_curvature(b.model, k_b, x, curvature.0, curvature.1),
                                     image: None,
                                 })
                             }
@@ -247,16 +294,20 @@ fn spawn_layer(
             }
         }
         LayerMesh::Volume(m) => {
-            let batch: Vec<_> = m
-                .tets
-                .iter()
-                .map(|t| {
-                    let rest = TetRest::from_rest(t.map(|i| m.rest[i as usize]), DMat3::IDENTITY)
-                        .expect("generated tets are valid");
-                    (TetVerts(t.map(|i| verts[i as usize])), TetOf(layer), TetRestShape(rest))
-                })
-                .collect();
-            world.spawn_batch(batch);
+            let scale = modulus(m.tets.len());
+            for (ti, t) in m.tets.iter().enumerate() {
+                let centre = t.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 4.0;
+                let f0 = stretch_at(centre).map(DMat3::from_diagonal);
+                let rest = TetRest::from_rest(t.map(|i| m.rest[i as usize]), f0.unwrap_or(DMat3::IDENTITY))
+                    .expect("generated tets are valid");
+                let mut e = world.spawn((TetVerts(t.map(|i| verts[i as usize])), TetOf(layer), TetRestShape(rest)));
+                if let Some(f0) = f0 {
+                    e.insert(TetPrestrain(f0));
+                }
+                if let Some(s) = &scale {
+                    e.insert(ModulusScale(s[ti]));
+                }
+            }
         }
     }
     (layer, verts)
