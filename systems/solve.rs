@@ -19,11 +19,12 @@ pub fn solve_patches(
         .map(|(patch, settings, body)| {
             let body: &mut SolverBody = body;
             let out = solve_frame(body, &settings.0, clock.dt);
-            (patch.name.clone(), body.vertices.len(), body.face_count, body.tet_count, out)
+            let counts = (body.vertices.len(), body.face_count, body.tet_count, body.inverted_tets());
+            (patch.name.clone(), counts, out)
         })
         .collect();
     report.patches.clear();
-    for (name, vertices, faces, tets, out) in outcomes {
+    for (name, (vertices, faces, tets, inverted), out) in outcomes {
         match out {
             Ok(o) => report.patches.push(PatchReport {
                 name,
@@ -42,6 +43,7 @@ pub fn solve_patches(
                 line_search_failures: o.line_search_failures,
                 solve_breakdown_ms: o.counters,
                 escapes: o.escapes,
+                inverted,
             }),
             Err(reason) => {
                 if failure.0.is_none() {

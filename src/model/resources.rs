@@ -107,6 +107,8 @@ pub struct PatchReport {
     pub line_search_failures: u32,
     /// Unstable equilibria left along negative curvature (quasistatic stability check).
     pub escapes: u32,
+    /// Tetrahedra with non-positive volume at the end of the frame (models that allow inversion).
+    pub inverted: usize,
     /// Time inside the solve: element assembly, factorization, line search (ms).
     pub solve_breakdown_ms: crate::solve::SolveCounters,
 }

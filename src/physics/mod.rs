@@ -11,6 +11,7 @@ pub mod hinge;
 pub mod material;
 pub mod membrane;
 pub mod prestrain;
+pub mod principal;
 pub mod psd;
 pub mod spring;
 pub mod tet;

@@ -69,7 +69,12 @@ pub fn eval(
     let f = deformation_gradient(rest, x);
     let (psi, p, mut hf) = match model {
         ConstitutiveModel::Corotational => corotational(lame, &f),
-        ConstitutiveModel::BazantHencky | ConstitutiveModel::StVenantKirchhoff => of_c(model, lame, &f),
+        // Projected in closed form: no 9x9 eigendecomposition needed afterwards.
+        ConstitutiveModel::BazantHencky => {
+            let (psi, p, hf) = super::principal::bazant_hencky(lame, &f, filter);
+            return chain_to_vertices::<9, 3, 4, 12>(rest.volume, psi, &p, &hf, &coefficients(&rest.b));
+        }
+        ConstitutiveModel::StVenantKirchhoff => of_c(model, lame, &f),
         ConstitutiveModel::StableNeoHookean => {
             let fd: [Dual2SVec64<9>; 9] = std::array::from_fn(|i| Dual2SVec64::from_re(f[i]).derivative(i));
             let psi = solid_psi(model, lame, &fd);

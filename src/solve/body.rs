@@ -102,6 +102,19 @@ pub struct SolverBody {
 }
 
 impl SolverBody {
+    /// Tetrahedra whose current volume is not positive.
+    pub fn inverted_tets(&self) -> usize {
+        let x = &self.x;
+        self.elements
+            .tets
+            .iter()
+            .filter(|t| {
+                let p = t.v.map(|i| x[i as usize]);
+                (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]) <= 0.0
+            })
+            .count()
+    }
+
     /// Drops the cached pattern (call after any change of connectivity or fixed coordinates).
     pub fn invalidate_pattern(&mut self) {
         self.system = None;
