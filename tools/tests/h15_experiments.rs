@@ -49,6 +49,12 @@ fn run(name: &str, frames: Option<u32>) -> Vec<Frame> {
         .collect()
 }
 
+/// Experiment 1 (Bazant-Hencky), shared by two tests.
+fn baseline() -> &'static [Frame] {
+    static RUN: std::sync::OnceLock<Vec<Frame>> = std::sync::OnceLock::new();
+    RUN.get_or_init(|| run("exp1_bazant_hencky", None))
+}
+
 fn mm(peaks: &[Peak]) -> Vec<String> {
     peaks.iter().map(|p| format!("{:.2} mm ({:.2})", p.wavelength * 1e3, p.strength)).collect()
 }
@@ -66,12 +72,12 @@ fn onset(frames: &[Frame]) -> (usize, f64) {
 
 #[test]
 fn three_layers_show_two_wavelengths_where_two_layers_show_one() {
-    let three = run("exp1_bazant_hencky", None);
+    let three = baseline();
     let two = run("exp3_two_layers", None);
     let soft_middle = run("exp4_living_epidermis", None);
-    let (f3, onset3) = onset(&three);
+    let (f3, onset3) = onset(three);
     println!("three layers: SC wrinkles at {:.2} mm (frame {f3})", onset3 * 1e3);
-    for (name, frames) in [("three layers", &three), ("two layers", &two), ("soft middle", &soft_middle)] {
+    for (name, frames) in [("three layers", three), ("two layers", &two), ("soft middle", &soft_middle)] {
         for f in [AT_86, AT_80_5] {
             println!("{name} at frame {f}: {:?}", mm(&at(frames, f).peaks));
         }
@@ -79,7 +85,7 @@ fn three_layers_show_two_wavelengths_where_two_layers_show_one() {
     for f in [AT_86, AT_80_5] {
         // Three layers: the dermis furrows (a long wavelength, sharp valleys) over the SC's own
         // wrinkling: at least two counted peaks, the dominant one far longer than the SC's.
-        let p = &at(&three, f).peaks;
+        let p = &at(three, f).peaks;
         assert!(p.len() >= 2, "three layers at frame {f}: {:?}", mm(p));
         assert!(p[0].wavelength > 2.0 * onset3, "furrows at frame {f}: {:?} vs SC {onset3}", mm(p));
         // Two layers, and SC / soft living epidermis / dermis: one wavelength, close to the one
@@ -95,16 +101,16 @@ fn three_layers_show_two_wavelengths_where_two_layers_show_one() {
 
 #[test]
 fn corotational_elements_invert_where_bazant_hencky_do_not() {
-    let bh = run("exp1_bazant_hencky", None);
+    let bh = baseline();
     let corot = run("exp1_corotational", None);
     let count = |frames: &[Frame]| frames.iter().map(|f| f.inverted).max().unwrap();
     println!(
         "inverted tets, most in any frame: Bazant-Hencky {}, corotational {} (frame 39: {})",
-        count(&bh),
+        count(bh),
         count(&corot),
         at(&corot, AT_80_5).inverted
     );
-    assert_eq!(count(&bh), 0);
+    assert_eq!(count(bh), 0);
     assert!(at(&corot, AT_80_5).inverted > 0);
 }
 
