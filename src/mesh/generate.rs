@@ -92,20 +92,28 @@ pub fn grid(size: DVec2, cells: (u32, u32), pattern: GridPattern, z: f64) -> Sur
 }
 
 /// A slab of tetrahedra over [0, size.x] x [0, size.y], from z = top - sum(depths) to z = top.
-/// `levels` lists, bottom to top, each layer's (depth, elements through it). Each grid cell is a
+/// `levels` lists, bottom to top, each layer's (depth, elements through it, grading): element
+/// thicknesses grow geometrically from the layer's top down so that the bottom one is `grading`
+/// times the top one (1 = uniform; > 1 refines towards the surface). Each grid cell is a
 /// pair of triangles; each triangular prism is split into three tetrahedra with the diagonal
 /// rule "lower-numbered bottom vertex to higher-numbered top vertex", which makes neighbouring
 /// prisms conform. Returns the mesh and, per tet, the index of its layer.
-pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32)]) -> (TetMesh, Vec<u32>) {
+pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f64)]) -> (TetMesh, Vec<u32>) {
     let (nx, ny) = (cells.0 as usize, cells.1 as usize);
     let mut zs = Vec::new();
     let total: f64 = levels.iter().map(|l| l.0).sum();
     let mut z = top - total;
     zs.push(z);
     let mut layer_of_level = Vec::new();
-    for (li, &(depth, n)) in levels.iter().enumerate() {
-        for _ in 0..n {
-            z += depth / n as f64;
+    for (li, &(depth, n, grading)) in levels.iter().enumerate() {
+        // Thickness of element i (bottom to top) relative to the top one: grading^((n-1-i)/(n-1)).
+        let weight = |i: u32| if n > 1 { grading.powf((n - 1 - i) as f64 / (n - 1) as f64) } else { 1.0 };
+        let sum: f64 = (0..n).map(weight).sum();
+        let level_bottom = z;
+        let mut acc = 0.0;
+        for i in 0..n {
+            acc += weight(i);
+            z = if i + 1 == n { level_bottom + depth } else { level_bottom + depth * acc / sum };
             zs.push(z);
             layer_of_level.push(li as u32);
         }
@@ -181,7 +189,7 @@ mod tests {
 
     #[test]
     fn slab_is_conforming_and_fills_its_volume() {
-        let (m, layer) = tet_slab(DVec2::new(2.0, 1.0), (4, 2), 0.0, &[(1.0, 2), (0.5, 1)]);
+        let (m, layer) = tet_slab(DVec2::new(2.0, 1.0), (4, 2), 0.0, &[(1.0, 2, 1.0), (0.5, 1, 1.0)]);
         let vol: f64 = m
             .tets
             .iter()

@@ -620,7 +620,7 @@ impl Builder {
                 }
                 LayerMesh::Surface(mesh::grid(DVec2::new(size.0, size.1) * len, *cells, *pattern, z * len))
             }
-            MeshSpec::TetSlab { size, cells, depth, elements, top } => {
+            MeshSpec::TetSlab { size, cells, depth, elements, top, grading } => {
                 if l.kind != LayerKind::Volume {
                     return Err(self.err(&field, "a TetSlab mesh belongs to a volume layer"));
                 }
@@ -634,7 +634,8 @@ impl Builder {
                     return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
                 }
                 let size = DVec2::new(size.0, size.1) * len;
-                let (m, _) = mesh::tet_slab(size, *cells, top * len, &[(depth * len, *elements)]);
+                positive(*grading, "grading")?;
+                let (m, _) = mesh::tet_slab(size, *cells, top * len, &[(depth * len, *elements, *grading)]);
                 slab = Some(SlabGrid {
                     size,
                     cells: *cells,
@@ -660,7 +661,7 @@ impl Builder {
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 LayerMesh::Surface(m)
             }
-            MeshSpec::TetOn { layer, depth, elements } => {
+            MeshSpec::TetOn { layer, depth, elements, grading } => {
                 if l.kind != LayerKind::Volume {
                     return Err(self.err(&field, "a TetOn mesh belongs to a volume layer"));
                 }
@@ -670,7 +671,8 @@ impl Builder {
                 }
                 let (bi, base) = base_slab(layer)?;
                 let new_top = base.top - base.origin.z + depth * len;
-                let (m, _) = mesh::tet_slab(base.size, base.cells, new_top, &[(depth * len, *elements)]);
+                positive(*grading, "grading")?;
+                let (m, _) = mesh::tet_slab(base.size, base.cells, new_top, &[(depth * len, *elements, *grading)]);
                 slab = Some(SlabGrid { top: new_top + base.origin.z, planes: *elements as usize + 1, ..base });
                 // The bottom plane is the base's top plane.
                 let plane = base.plane_len();

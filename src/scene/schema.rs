@@ -232,12 +232,22 @@ pub enum MeshSpec {
         elements: u32,
         #[serde(default)]
         top: f64,
+        /// Bottom element thickness over top element thickness (1: uniform; > 1 refines towards
+        /// the surface, where wrinkle displacements are largest).
+        #[serde(default = "default_one")]
+        grading: f64,
     },
     /// A triangle surface from an OBJ file (path relative to the scene file), in length units.
     Obj { path: String },
     /// A tetrahedral slab stacked on the top of an earlier volume layer (TetSlab or TetOn),
     /// sharing its top vertices: `depth` thick with `elements` prisms through it (H15 4.1).
-    TetOn { layer: String, depth: f64, elements: u32 },
+    TetOn {
+        layer: String,
+        depth: f64,
+        elements: u32,
+        #[serde(default = "default_one")]
+        grading: f64,
+    },
     /// The top surface of an earlier volume layer: a shell (or kinematic) layer whose vertices
     /// are that layer's top vertices (H15: the stratum corneum over the dermis).
     SurfaceOf { layer: String },

@@ -1,3 +1,4 @@
 //! Small tools around the engine, shared by the `skinsim` binary and the tests.
 
+pub mod film;
 pub mod wrinkles;

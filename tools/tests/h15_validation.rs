@@ -1,0 +1,63 @@
+//! VALIDATION.md cases 7 and 8: a stiff shell film on a soft tetrahedral substrate (the H15
+//! construction) in plane strain, against wrinkling theory. Periodic domains of eight expected
+//! wavelengths (the neighbouring mode numbers are 11-14 % away, so the 3 % and 5 % wavelength
+//! tolerances test which mode the solver selects), 20 film elements per wavelength, substrates
+//! graded towards the surface. Substrate nu_s = 0.45: linear tetrahedra lock at 0.495 (measured,
+//! closing note); the case-8 references for 0.45 come from the same layered-elasticity solution
+//! that reproduces VALIDATION.md's 0.495 table (`film::layered_theory`, unit-tested).
+//! `cargo test --release -p skinsim-cli --test h15_validation -- --nocapture` prints the figures.
+
+use skinsim_tools::film::{FilmResult, FilmSubstrate};
+
+fn report(name: &str, r: &FilmResult) {
+    println!(
+        "{name}: wavelength {:.3} h (theory {:.3}, {:+.2} %), onset {:.5} (theory {:.5}, {:+.2} %), \
+         amplitude errors {}; {} increments converged: {}, {:.0} ms per increment, {} Newton iterations",
+        r.wavelength,
+        r.expected_wavelength,
+        100.0 * r.wavelength_error(),
+        r.onset,
+        r.expected_onset,
+        100.0 * r.onset_error(),
+        r.amplitude_errors.iter().map(|(t, e)| format!("{t} eps_c: {:+.2} %", 100.0 * e)).collect::<Vec<_>>().join(", "),
+        r.series.len(),
+        r.all_converged,
+        1e3 * r.wall_per_increment_s,
+        r.newton_iterations,
+    );
+}
+
+fn case_7(ratio: f64) {
+    let mut setup = FilmSubstrate::deep(ratio, 8, 20, 20);
+    setup.grading = 20.0;
+    let r = setup.run().unwrap();
+    report(&format!("case 7, Ebar_f / Ebar_s = {ratio}"), &r);
+    assert!(r.all_converged);
+    assert!(r.wavelength_error().abs() < 0.03, "wavelength {:+.3}", r.wavelength_error());
+    assert!(r.onset_error().abs() < 0.05, "onset {:+.3}", r.onset_error());
+    assert_eq!(r.amplitude_errors.len(), 3);
+    assert!(r.worst_amplitude_error() < 0.10, "{:?}", r.amplitude_errors);
+}
+
+#[test]
+fn case_7_stiffness_ratio_1000() {
+    // lambda_c / h = 43.565, eps_c = 0.005200.
+    case_7(1000.0);
+}
+
+#[test]
+fn case_7_stiffness_ratio_10000() {
+    // lambda_c / h = 93.86, eps_c = 0.001120.
+    case_7(10000.0);
+}
+
+#[test]
+fn case_8_finite_depth_on_a_rigid_base() {
+    for (depth, elements) in [(0.2, 8), (0.3, 8), (0.5, 10)] {
+        let r = FilmSubstrate::on_rigid(depth, 0.45, 20, elements).run().unwrap();
+        report(&format!("case 8, H / lambda_inf = {depth}"), &r);
+        assert!(r.all_converged);
+        assert!(r.wavelength_error().abs() < 0.05, "H {depth}: wavelength {:+.3}", r.wavelength_error());
+        assert!(r.onset_error().abs() < 0.05, "H {depth}: onset {:+.3}", r.onset_error());
+    }
+}
