@@ -31,9 +31,8 @@ pub fn bazant_hencky(lame: Lame, f: &[f64; 9], filter: Filter) -> (f64, SVector<
     }
     let p = u * Matrix3::from_diagonal(&d1) * v.transpose();
     // Outer product u_a v_b^T as a vec(9).
-    let outer = |a: usize, b: usize| -> SVector<f64, 9> {
-        SVector::<f64, 9>::from_fn(|r, _| u[(r % 3, a)] * v[(r / 3, b)])
-    };
+    let outer =
+        |a: usize, b: usize| -> SVector<f64, 9> { SVector::<f64, 9>::from_fn(|r, _| u[(r % 3, a)] * v[(r / 3, b)]) };
     let mut modes: [(f64, SVector<f64, 9>); 9] = [(0.0, SVector::zeros()); 9];
     let scaling = d2.symmetric_eigen();
     for k in 0..3 {

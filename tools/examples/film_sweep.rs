@@ -8,7 +8,9 @@ fn main() {
     } else {
         FilmSubstrate::deep(a[0], a[1] as u32, a[2] as u32, a[3] as u32)
     };
-    if a[0] >= 1.0 { f.grading = a.get(4).copied().unwrap_or(1.0); }
+    if a[0] >= 1.0 {
+        f.grading = a.get(4).copied().unwrap_or(1.0);
+    }
     let r = f.run().unwrap();
     println!(
         "ratio {} waves {} cpw {} de {} g {}: lambda {:+.2}% onset {:+.2}% amp {:?} | {:.1} ms/inc, {} it, conv {} verts {}",

@@ -37,6 +37,16 @@ enum Command {
         #[arg(long)]
         periodic: bool,
     },
+    /// Speed against error (VALIDATION.md F): sweeps the resolution of the wrinkling cases and
+    /// writes speed_error.md, .csv and .svg (time per increment against error, log-log).
+    Report {
+        /// Output folder.
+        #[arg(long, default_value = "report")]
+        out: PathBuf,
+        /// Only the two coarsest resolutions of each sweep.
+        #[arg(long)]
+        quick: bool,
+    },
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -96,6 +106,7 @@ fn main() -> ExitCode {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
+        Command::Report { out, quick } => report(&out, quick),
     });
     match result {
         Ok(code) => code,
@@ -271,4 +282,17 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<re
     .map_err(|e| e.to_string())?;
     rec.set_log_time_enabled(false);
     Ok(Some(rec))
+}
+
+fn report(out: &Path, quick: bool) -> ExitCode {
+    match skinsim_tools::report::speed_error(out, quick) {
+        Ok(rows) => {
+            println!("{} runs; wrote {}", rows.len(), out.join("speed_error.md").display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -19,7 +19,11 @@ fn report(name: &str, r: &FilmResult) {
         r.onset,
         r.expected_onset,
         100.0 * r.onset_error(),
-        r.amplitude_errors.iter().map(|(t, e)| format!("{t} eps_c: {:+.2} %", 100.0 * e)).collect::<Vec<_>>().join(", "),
+        r.amplitude_errors
+            .iter()
+            .map(|(t, e)| format!("{t} eps_c: {:+.2} %", 100.0 * e))
+            .collect::<Vec<_>>()
+            .join(", "),
         r.series.len(),
         r.all_converged,
         1e3 * r.wall_per_increment_s,

@@ -1,0 +1,158 @@
+//! `skinsim report`: speed against error (VALIDATION.md F) for the wrinkling cases, as a
+//! markdown table, a CSV and a log-log plot (time per increment against error).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::film::FilmSubstrate;
+use crate::skin_section::{SkinSection, PREDICTED_AMPLITUDE_UM, PREDICTED_ONSET, PREDICTED_WAVELENGTH_MM};
+
+/// One run of a sweep.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub series: &'static str,
+    pub resolution: String,
+    pub vertices: usize,
+    pub ms_per_increment: f64,
+    pub newton_iterations: u32,
+    pub wavelength_error: f64,
+    pub onset_error: f64,
+    pub amplitude_error: f64,
+}
+
+impl Row {
+    /// The error the plot shows: the worst of the onset and amplitude errors.
+    pub fn error(&self) -> f64 {
+        self.onset_error.abs().max(self.amplitude_error.abs())
+    }
+}
+
+/// Runs the sweeps; `quick` keeps the two coarsest resolutions of each.
+pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Row>, Box<dyn std::error::Error>> {
+    std::fs::create_dir_all(out)?;
+    let mut rows = Vec::new();
+    let take = |v: &[u32]| if quick { v[..2].to_vec() } else { v.to_vec() };
+    for (series, grading) in [("case 7, graded substrate", 20.0), ("case 7, uniform substrate", 1.0)] {
+        for cpw in take(&[8, 10, 12, 16, 20, 24]) {
+            let mut setup = FilmSubstrate::deep(1000.0, 8, cpw, cpw);
+            setup.grading = grading;
+            let r = setup.run()?;
+            eprintln!("{series}, {cpw} per wavelength: {:.0} ms per increment", 1e3 * r.wall_per_increment_s);
+            rows.push(Row {
+                series,
+                resolution: format!("{cpw} film elements / wavelength, {cpw} through the depth"),
+                vertices: r.vertices,
+                ms_per_increment: 1e3 * r.wall_per_increment_s,
+                newton_iterations: r.newton_iterations,
+                wavelength_error: r.wavelength_error(),
+                onset_error: r.onset_error(),
+                amplitude_error: r.worst_amplitude_error(),
+            });
+        }
+    }
+    for cpw in take(&[8, 10, 16, 20]) {
+        let r = SkinSection { cells_per_wave: cpw, dermis_elements: cpw, hypodermis_elements: 4 }.run()?;
+        eprintln!("case 9, {cpw} per wavelength: {:.0} ms per increment", 1e3 * r.wall_per_increment_s);
+        let amplitude_error = r
+            .at
+            .iter()
+            .zip(PREDICTED_AMPLITUDE_UM)
+            .map(|((_, a, _), (_, p))| a / p - 1.0)
+            .fold(0.0f64, |m, e| if e.abs() > m.abs() { e } else { m });
+        rows.push(Row {
+            series: "case 9, H15 parameters",
+            resolution: format!("{cpw} SC elements / wavelength, {cpw} + 4 through dermis + hypodermis"),
+            vertices: r.vertices,
+            ms_per_increment: 1e3 * r.wall_per_increment_s,
+            newton_iterations: r.newton_iterations,
+            wavelength_error: r.first_wavelength_mm / PREDICTED_WAVELENGTH_MM - 1.0,
+            onset_error: r.onset / PREDICTED_ONSET - 1.0,
+            amplitude_error,
+        });
+    }
+    write_table(out, &rows)?;
+    plot(&out.join("speed_error.svg"), &rows)?;
+    Ok(rows)
+}
+
+fn write_table(out: &Path, rows: &[Row]) -> std::io::Result<()> {
+    let mut md = String::from(
+        "# Speed against error (VALIDATION.md F)\n\n\
+         Regenerate: `cargo run --release --bin skinsim -- report --out report`.\n\
+         Case 7: Ebar_f / Ebar_s = 1000, theory of Chen and Hutchinson; case 9: H15's 3D parameters in plane strain \
+         against the layered-elasticity prediction (0.98 mm, 0.52 %, 66 / 96 / 138 um). Periodic domains of eight \
+         wavelengths: the wavelength is a mode selection (neighbours 11-14 % away). Amplitude: worst of 1.5, 2, 3 eps_c \
+         (case 7) or 5, 10, 20 % (case 9). Time: wall per quasistatic increment on this machine.\n\n\
+         | series | resolution | vertices | ms / increment | Newton iterations | wavelength error | onset error | amplitude error |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    let mut csv = String::from(
+        "series,resolution,vertices,ms_per_increment,newton_iterations,wavelength_error,onset_error,amplitude_error\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.0} | {} | {:+.2} % | {:+.2} % | {:+.2} % |",
+            r.series,
+            r.resolution,
+            r.vertices,
+            r.ms_per_increment,
+            r.newton_iterations,
+            100.0 * r.wavelength_error,
+            100.0 * r.onset_error,
+            100.0 * r.amplitude_error
+        );
+        let _ = writeln!(
+            csv,
+            "{},{},{},{:.3},{},{:.6},{:.6},{:.6}",
+            r.series,
+            r.resolution,
+            r.vertices,
+            r.ms_per_increment,
+            r.newton_iterations,
+            r.wavelength_error,
+            r.onset_error,
+            r.amplitude_error
+        );
+    }
+    std::fs::write(out.join("speed_error.md"), md)?;
+    std::fs::write(out.join("speed_error.csv"), csv)
+}
+
+fn plot(path: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error>> {
+    let err = |r: &Row| r.error().max(1e-4);
+    let (emin, emax) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(err(r)), b.max(err(r))));
+    let (tmin, tmax) =
+        rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.ms_per_increment), b.max(r.ms_per_increment)));
+    let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("time per increment against error (log-log)", ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((emin / 1.5..emax * 1.5).log_scale(), (tmin / 1.5..tmax * 1.5).log_scale())?;
+    chart.configure_mesh().x_desc("worst of onset and amplitude error").y_desc("ms per increment").draw()?;
+    let mut names: Vec<&str> = rows.iter().map(|r| r.series).collect();
+    names.dedup();
+    for (i, name) in names.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let pts: Vec<(f64, f64)> =
+            rows.iter().filter(|r| r.series == *name).map(|r| (err(r), r.ms_per_increment)).collect();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
+        chart.draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
