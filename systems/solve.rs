@@ -43,6 +43,8 @@ pub fn solve_patches(
                 line_search_failures: o.line_search_failures,
                 solve_breakdown_ms: o.counters,
                 escapes: o.escapes,
+                factorizations: o.factorizations,
+                cg_iterations: o.cg_iterations,
                 inverted,
             }),
             Err(reason) => {

@@ -192,3 +192,27 @@ fn implicit_euler_keeps_a_free_sheet_in_uniform_motion() {
         assert!(moved.length() < 1e-12, "{moved:?}");
     }
 }
+
+#[test]
+fn krylov_newton_reaches_the_direct_solution_with_fewer_factorizations() {
+    let direct = load("strip_wrinkles.ron");
+    let text = std::fs::read_to_string(scene_path("strip_wrinkles.ron")).unwrap();
+    let text = text.replace("max_iterations: 60,", "max_iterations: 60, linear: Krylov(max_iterations: 30),");
+    let krylov = load_str(&text, &scene_path("strip_wrinkles.ron")).unwrap();
+    let run = |scene: &BuiltScene| {
+        let mut sim = Simulation::new(scene);
+        let mut factorizations = 0;
+        for _ in 0..12 {
+            let s = sim.step();
+            assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+            factorizations += s.patches[0].factorizations;
+        }
+        (sim.layer_positions("strip", "film"), factorizations)
+    };
+    let (a, fa) = run(&direct);
+    let (b, fb) = run(&krylov);
+    let worst = a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0f64, f64::max);
+    println!("factorizations: direct {fa}, Krylov {fb}; largest position difference {worst:.3e} m");
+    assert!(worst < 1e-6 * 0.04, "the same equilibrium: {worst} m");
+    assert!(fb < fa, "Krylov {fb} vs direct {fa}");
+}

@@ -107,6 +107,9 @@ pub struct PatchReport {
     pub line_search_failures: u32,
     /// Unstable equilibria left along negative curvature (quasistatic stability check).
     pub escapes: u32,
+    /// Numeric Cholesky factorizations and conjugate-gradient iterations in the frame.
+    pub factorizations: u32,
+    pub cg_iterations: u32,
     /// Tetrahedra with non-positive volume at the end of the frame (models that allow inversion).
     pub inverted: usize,
     /// Time inside the solve: element assembly, factorization, line search (ms).

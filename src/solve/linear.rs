@@ -23,6 +23,8 @@ pub struct CholeskySolver {
     mem: MemBuffer,
     par: Par,
     factored: bool,
+    /// Numeric factorizations so far.
+    pub factorizations: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,7 +49,7 @@ impl CholeskySolver {
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
         let l_values = vec![0.0; symbolic.len_val()];
-        CholeskySolver { symbolic, l_values, mem: MemBuffer::new(req), par, factored: false }
+        CholeskySolver { symbolic, l_values, mem: MemBuffer::new(req), par, factored: false, factorizations: 0 }
     }
 
     /// Numeric factorization of the pattern's matrix with `values`.
@@ -55,6 +57,7 @@ impl CholeskySolver {
         let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
         let a = SparseColMatRef::new(sym, values);
         let stack = MemStack::new(&mut self.mem);
+        self.factorizations += 1;
         let res = self.symbolic.factorize_numeric_llt(
             &mut self.l_values,
             a,
@@ -80,6 +83,11 @@ impl CholeskySolver {
         let stack = MemStack::new(&mut self.mem);
         let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
         llt.solve_in_place_with_conj(Conj::No, mat, self.par, stack);
+    }
+
+    /// Whether the last factorization succeeded (its factor can precondition CG).
+    pub fn is_factored(&self) -> bool {
+        self.factored
     }
 
     pub fn factor_nnz(&self) -> usize {

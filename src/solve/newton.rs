@@ -9,7 +9,7 @@ use super::linear::CholeskySolver;
 use super::pattern::{Pattern, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
-use crate::scene::schema::{SolveMode, SolverSpec};
+use crate::scene::schema::{LinearSolver, SolveMode, SolverSpec};
 
 /// Armijo sufficient-decrease constant.
 const ARMIJO: f64 = 1e-4;
@@ -37,6 +37,9 @@ pub struct FrameOutcome {
     pub line_search_failures: u32,
     /// Times the solve left an unstable equilibrium along negative curvature.
     pub escapes: u32,
+    /// Numeric Cholesky factorizations, and conjugate-gradient iterations (Krylov mode).
+    pub factorizations: u32,
+    pub cg_iterations: u32,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
     /// factorization and triangular solves, line-search energy evaluations.
     pub counters: SolveCounters,
@@ -78,7 +81,11 @@ pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Res
             (p, s)
         }
     };
-    let result = newton(body, &pattern, &mut chol, settings, dt);
+    let before = chol.factorizations;
+    let result = newton(body, &pattern, &mut chol, settings, dt).map(|mut o| {
+        o.factorizations = (chol.factorizations - before) as u32;
+        o
+    });
     body.system = Some((pattern, chol));
     result
 }
@@ -114,7 +121,9 @@ fn newton(
     if dynamic {
         body.x.copy_from_slice(&x_hat);
     }
-    let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &body.mass, inv_h2: 1.0 / (dt * dt) });
+    // (a copy: the line search mutates the body)
+    let mass = if dynamic { body.mass.clone() } else { Vec::new() };
+    let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &mass, inv_h2: 1.0 / (dt * dt) });
     let total =
         |parts: &[f64; 4], x: &[DVec3]| parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
@@ -201,7 +210,37 @@ fn newton(
         if out.iterations >= settings.max_iterations {
             break;
         }
-        // Search direction: H dx = -g, shifting the diagonal if H is not positive definite.
+        // Search direction: H dx = -g. Krylov mode first tries CG preconditioned by the last
+        // factor (inexact Newton: relative tolerance min(0.1, sqrt(residual))).
+        if let (LinearSolver::Krylov { max_iterations }, true) = (settings.linear, chol.is_factored()) {
+            let clock = std::time::Instant::now();
+            let b: Vec<f64> = grad.iter().map(|g| -g).collect();
+            let tol = 0.1f64.min(residual.sqrt()) * gnorm;
+            let cg = pcg(pattern, &values, chol, &b, &mut dx, tol, max_iterations);
+            out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+            out.cg_iterations += cg.unwrap_or_else(|e| e);
+            if cg.is_ok() {
+                let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+                if slope < 0.0 {
+                    if line_search(
+                        body,
+                        pattern,
+                        &dx,
+                        &grad,
+                        phi,
+                        residual,
+                        energy_scale,
+                        settings.tolerance,
+                        &total,
+                        &mut out,
+                    ) {
+                        continue;
+                    }
+                    break;
+                }
+            }
+        }
+        // Direct: factorize H, shifting the diagonal if it is not positive definite.
         let clock = std::time::Instant::now();
         let factorized = chol.factorize(pattern, &values);
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
@@ -233,36 +272,7 @@ fn newton(
                 *d = -g * scale;
             }
         }
-        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        // Armijo backtracking on the total potential.
-        let clock = std::time::Instant::now();
-        let x0 = body.x.clone();
-        let mut alpha = 1.0;
-        let mut accepted = false;
-        // Near the solution the decrease can fall below the energy's round-off: there a full
-        // Newton step is accepted if the energy stays within that band.
-        let noise = ROUND_OFF * energy_scale;
-        for i in 0..MAX_HALVINGS {
-            step(&mut body.x, &x0, &pattern.dof, &dx, alpha);
-            let trial = total(&energy(&body.elements, &body.x), &body.x);
-            let armijo = trial <= phi + ARMIJO * alpha * slope;
-            let flat = i == 0 && residual < ADAPTIVE_SWITCH && trial <= phi + noise;
-            if trial.is_finite() && (armijo || flat) {
-                accepted = true;
-                break;
-            }
-            alpha *= 0.5;
-        }
-        out.counters.line_search_ms += clock.elapsed().as_secs_f64() * 1e3;
-        out.iterations += 1;
-        tracing::debug!(iteration = out.iterations, residual, ?filter, alpha, slope, phi, accepted, "newton");
-        if !accepted {
-            out.line_search_failures += 1;
-            body.x.copy_from_slice(&x0);
-            // At round-off level no decrease is measurable: accept a near-converged state.
-            if residual <= settings.tolerance * 1e3 {
-                out.converged = true;
-            }
+        if !line_search(body, pattern, &dx, &grad, phi, residual, energy_scale, settings.tolerance, &total, &mut out) {
             break;
         }
     }
@@ -272,6 +282,93 @@ fn newton(
         }
     }
     Ok(out)
+}
+
+/// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
+/// when no step is accepted (the state is restored; near round-off it counts as converged).
+#[allow(clippy::too_many_arguments)]
+fn line_search(
+    body: &mut SolverBody,
+    pattern: &Pattern,
+    dx: &[f64],
+    grad: &[f64],
+    phi: f64,
+    residual: f64,
+    energy_scale: f64,
+    tolerance: f64,
+    total: &dyn Fn(&[f64; 4], &[DVec3]) -> f64,
+    out: &mut FrameOutcome,
+) -> bool {
+    let slope: f64 = dx.iter().zip(grad).map(|(a, b)| a * b).sum();
+    let clock = std::time::Instant::now();
+    let x0 = body.x.clone();
+    let mut alpha = 1.0;
+    let mut accepted = false;
+    // Near the solution the decrease can fall below the energy's round-off: there a full
+    // Newton step is accepted if the energy stays within that band.
+    let noise = ROUND_OFF * energy_scale;
+    for i in 0..MAX_HALVINGS {
+        step(&mut body.x, &x0, &pattern.dof, dx, alpha);
+        let trial = total(&energy(&body.elements, &body.x), &body.x);
+        let armijo = trial <= phi + ARMIJO * alpha * slope;
+        let flat = i == 0 && residual < ADAPTIVE_SWITCH && trial <= phi + noise;
+        if trial.is_finite() && (armijo || flat) {
+            accepted = true;
+            break;
+        }
+        alpha *= 0.5;
+    }
+    out.counters.line_search_ms += clock.elapsed().as_secs_f64() * 1e3;
+    out.iterations += 1;
+    tracing::debug!(iteration = out.iterations, residual, alpha, slope, phi, accepted, "newton");
+    if !accepted {
+        out.line_search_failures += 1;
+        body.x.copy_from_slice(&x0);
+        // At round-off level no decrease is measurable: accept a near-converged state.
+        if residual <= 1e3 * tolerance {
+            out.converged = true;
+        }
+    }
+    accepted
+}
+
+/// Preconditioned conjugate gradients on H x = b (x starts at 0), M^-1 = the factor in `chol`.
+/// Ok(iterations) when |r| <= tol; Err(iterations) on negative curvature or no convergence.
+fn pcg(
+    pattern: &Pattern,
+    h: &[f64],
+    chol: &mut CholeskySolver,
+    b: &[f64],
+    x: &mut [f64],
+    tol: f64,
+    max_iterations: u32,
+) -> Result<u32, u32> {
+    x.iter_mut().for_each(|v| *v = 0.0);
+    let mut r = b.to_vec();
+    let mut z = r.clone();
+    chol.solve(&mut z);
+    let mut p = z.clone();
+    let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+    for it in 1..=max_iterations {
+        let hp = symmetric_product(pattern, h, &p);
+        let php: f64 = p.iter().zip(&hp).map(|(a, b)| a * b).sum();
+        if !(php > 0.0) {
+            return Err(it);
+        }
+        let alpha = rz / php;
+        x.iter_mut().zip(&p).for_each(|(xi, pi)| *xi += alpha * pi);
+        r.iter_mut().zip(&hp).for_each(|(ri, hi)| *ri -= alpha * hi);
+        if r.iter().map(|v| v * v).sum::<f64>().sqrt() <= tol {
+            return Ok(it);
+        }
+        z.copy_from_slice(&r);
+        chol.solve(&mut z);
+        let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let beta = rz_new / rz;
+        rz = rz_new;
+        p.iter_mut().zip(&z).for_each(|(pi, zi)| *pi = zi + beta * *pi);
+    }
+    Err(max_iterations)
 }
 
 /// At a converged point: if the exact Hessian `h` is indefinite, returns a lower-energy state
@@ -291,19 +388,24 @@ fn leave_saddle(
     }
     let n = pattern.n;
     let mean_diag = mean_abs_diagonal(pattern, h);
+    // Inverse iteration amplifies the eigenvector whose eigenvalue is nearest the shift.
+    let inverse_iteration = |chol: &mut CholeskySolver| {
+        let mut y: Vec<f64> = (0..n).map(|i| ((i as f64 + 1.0) * 12.9898).sin().fract() - 0.5).collect();
+        for _ in 0..16 {
+            chol.solve(&mut y);
+            let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+            y.iter_mut().for_each(|v| *v /= norm);
+        }
+        let hy = symmetric_product(pattern, h, &y);
+        let curvature: f64 = y.iter().zip(&hy).map(|(a, b)| a * b).sum();
+        (curvature < -1e-9 * mean_diag).then_some(y)
+    };
+    // Shifted Cholesky factorizations of H + sigma I until positive definite: inverse iteration
+    // then finds the most negative curvature (the fastest-growing mode). (An L D L^T of H itself
+    // needs one factorization, but its nearest-to-zero eigenvalue picked other modes: measured,
+    // it changed which wavelength H15 experiment 5 first wrinkles at.)
     factorize_shifted(chol, pattern, h, &mut Vec::new(), 1e-6, 4.0, 14)?;
-    // Inverse iteration: (H + sigma I)^-1 amplifies the eigenvector of the lowest eigenvalue.
-    let mut y: Vec<f64> = (0..n).map(|i| ((i as f64 + 1.0) * 12.9898).sin().fract() - 0.5).collect();
-    for _ in 0..16 {
-        chol.solve(&mut y);
-        let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
-        y.iter_mut().for_each(|v| *v /= norm);
-    }
-    let hy = symmetric_product(pattern, h, &y);
-    let curvature: f64 = y.iter().zip(&hy).map(|(a, b)| a * b).sum();
-    if curvature >= -1e-9 * mean_diag {
-        return None;
-    }
+    let y = inverse_iteration(chol)?;
     // Step along +-y, scaled so the largest displacement is t, growing t while energy falls.
     let max = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let noise = ROUND_OFF * energy_scale;
