@@ -35,9 +35,9 @@ pub fn bazant_hencky(lame: Lame, f: &[f64; 9], filter: Filter) -> (f64, SVector<
         |a: usize, b: usize| -> SVector<f64, 9> { SVector::<f64, 9>::from_fn(|r, _| u[(r % 3, a)] * v[(r / 3, b)]) };
     let mut modes: [(f64, SVector<f64, 9>); 9] = [(0.0, SVector::zeros()); 9];
     let scaling = d2.symmetric_eigen();
-    for k in 0..3 {
+    for (k, mode) in modes.iter_mut().take(3).enumerate() {
         let e: Vector3<f64> = scaling.eigenvectors.column(k).into();
-        modes[k] = (scaling.eigenvalues[k], outer(0, 0) * e[0] + outer(1, 1) * e[1] + outer(2, 2) * e[2]);
+        *mode = (scaling.eigenvalues[k], outer(0, 0) * e[0] + outer(1, 1) * e[1] + outer(2, 2) * e[2]);
     }
     let r2 = std::f64::consts::FRAC_1_SQRT_2;
     for (n, (i, j)) in [(0usize, 1usize), (0, 2), (1, 2)].into_iter().enumerate() {

@@ -352,7 +352,8 @@ fn pcg(
     for it in 1..=max_iterations {
         let hp = symmetric_product(pattern, h, &p);
         let php: f64 = p.iter().zip(&hp).map(|(a, b)| a * b).sum();
-        if !(php > 0.0) {
+        // (a NaN counts as negative curvature)
+        if php.is_nan() || php <= 0.0 {
             return Err(it);
         }
         let alpha = rz / php;
