@@ -158,3 +158,17 @@ fn analyze_reports_wavelength_and_amplitude_of_exported_frames() {
     let out = skinsim().arg("analyze").arg(d.join("nowhere")).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn report_writes_the_speed_against_error_table_csv_and_plot() {
+    let dir = scratch("report");
+    let out = skinsim().args(["report", "--quick", "--out"]).arg(&dir).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = std::fs::read_to_string(dir.join("speed_error.md")).unwrap();
+    // Two resolutions of each of the three series.
+    assert_eq!(table.lines().filter(|l| l.starts_with("| case")).count(), 6, "{table}");
+    let csv = std::fs::read_to_string(dir.join("speed_error.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 7);
+    let svg = std::fs::read_to_string(dir.join("speed_error.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("case 7, graded substrate"));
+}
