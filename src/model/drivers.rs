@@ -55,19 +55,9 @@ impl Motion {
                 q
             }
             MotionKind::Bend { axis } => {
-                if v == 0.0 {
-                    return p;
-                }
                 // s: arc length along the bent direction; the cylinder axis is `axis`.
                 let bent = if axis == 1 { 0 } else { 1 };
-                let r = 1.0 / v;
-                let s = p[bent] - centre[bent];
-                let h = p.z - centre.z; // offset along the normal keeps thickness straight
-                let (sn, cs) = (s / r).sin_cos();
-                let mut q = p;
-                q[bent] = centre[bent] + (r - h) * sn;
-                q.z = centre.z + r - (r - h) * cs;
-                q
+                crate::physics::prestrain::wrap_on_cylinder(p, centre, v, bent)
             }
         }
     }

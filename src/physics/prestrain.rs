@@ -79,6 +79,23 @@ pub fn hinge_capture(model: HingeModel, rest: &HingeRest, x: &[DVec3; 4], f: f64
     HingeRest { weight: rest.weight, rest_phi: (1.0 - f) * rest.rest_phi + f * current }
 }
 
+/// Maps a point of a flat sheet onto a cylinder of curvature kappa that curves along `axis`
+/// (0 = x, 1 = y) towards +z, touching the sheet at `centre`; arc length along the axis and the
+/// offset along z (the normal) are kept.
+pub fn wrap_on_cylinder(p: DVec3, centre: DVec3, kappa: f64, axis: usize) -> DVec3 {
+    if kappa == 0.0 {
+        return p;
+    }
+    let r = 1.0 / kappa;
+    let s = p[axis] - centre[axis];
+    let h = p.z - centre.z;
+    let (sn, cs) = (s / r).sin_cos();
+    let mut q = p;
+    q[axis] = centre[axis] + (r - h) * sn;
+    q.z = centre.z + r - (r - h) * cs;
+    q
+}
+
 /// A flat rest hinge given a rest curvature kappa along `axis` (0 = x, 1 = y): the rest bend is
 /// that of the hinge wrapped on a cylinder of radius 1 / kappa, its weight that of the flat one.
 pub fn hinge_with_curvature(model: HingeModel, k_b: f64, x: [DVec3; 4], kappa: f64, axis: usize) -> HingeRest {
@@ -86,18 +103,7 @@ pub fn hinge_with_curvature(model: HingeModel, k_b: f64, x: [DVec3; 4], kappa: f
     if kappa == 0.0 {
         return flat;
     }
-    let r = 1.0 / kappa;
-    let c = x[0];
-    let wrap = |p: DVec3| {
-        let s = p[axis] - c[axis];
-        let h = p.z - c.z;
-        let (sn, cs) = (s / r).sin_cos();
-        let mut q = p;
-        q[axis] = c[axis] + (r - h) * sn;
-        q.z = c.z + r - (r - h) * cs;
-        q
-    };
-    let bent = HingeRest::from_rest(model, k_b, x.map(wrap));
+    let bent = HingeRest::from_rest(model, k_b, x.map(|p| wrap_on_cylinder(p, x[0], kappa, axis)));
     HingeRest { weight: flat.weight, rest_phi: bent.rest_phi }
 }
 

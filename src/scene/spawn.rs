@@ -244,23 +244,17 @@ fn spawn_layer(
                 }
             }
             // A hinge's stiffness follows its faces' moduli (mean of the two).
-            let face_index: HashMap<[u32; 3], usize> = m
-                .faces
-                .iter()
-                .enumerate()
-                .map(|(i, f)| {
-                    let mut k = *f;
-                    k.sort_unstable();
-                    (k, i)
-                })
-                .collect();
+            let sorted = |mut k: [u32; 3]| {
+                k.sort_unstable();
+                k
+            };
+            let face_index: HashMap<[u32; 3], usize> = match scale {
+                Some(_) => m.faces.iter().enumerate().map(|(i, f)| (sorted(*f), i)).collect(),
+                None => HashMap::new(),
+            };
             let hinge_scale = |q: [u32; 4]| -> f64 {
                 let Some(s) = &scale else { return 1.0 };
-                let face = |a: u32, b: u32, c: u32| {
-                    let mut k = [a, b, c];
-                    k.sort_unstable();
-                    face_index.get(&k).map_or(1.0, |&i| s[i])
-                };
+                let face = |a: u32, b: u32, c: u32| face_index.get(&sorted([a, b, c])).map_or(1.0, |&i| s[i]);
                 0.5 * (face(q[0], q[1], q[2]) + face(q[0], q[1], q[3]))
             };
             let curvature = l.prestrain.as_ref().map_or((0.0, 0), |p| (p.curvature, p.along));

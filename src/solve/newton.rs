@@ -349,8 +349,9 @@ fn pcg(
     chol.solve(&mut z);
     let mut p = z.clone();
     let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+    let mut hp = vec![0.0; b.len()];
     for it in 1..=max_iterations {
-        let hp = symmetric_product(pattern, h, &p);
+        symmetric_product_into(pattern, h, &p, &mut hp);
         let php: f64 = p.iter().zip(&hp).map(|(a, b)| a * b).sum();
         // (a NaN counts as negative curvature)
         if php.is_nan() || php <= 0.0 {
@@ -463,6 +464,13 @@ fn factorize_shifted(
 /// y = H x for the symmetric matrix whose lower triangle is stored in the pattern.
 fn symmetric_product(pattern: &Pattern, values: &[f64], x: &[f64]) -> Vec<f64> {
     let mut y = vec![0.0; pattern.n];
+    symmetric_product_into(pattern, values, x, &mut y);
+    y
+}
+
+/// y = H x into a caller's buffer (the CG loop).
+fn symmetric_product_into(pattern: &Pattern, values: &[f64], x: &[f64], y: &mut [f64]) {
+    y.iter_mut().for_each(|v| *v = 0.0);
     for c in 0..pattern.n {
         let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
         for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
@@ -473,7 +481,6 @@ fn symmetric_product(pattern: &Pattern, values: &[f64], x: &[f64]) -> Vec<f64> {
             }
         }
     }
-    y
 }
 
 fn step(x: &mut [DVec3], x0: &[DVec3], dof: &[u32], dx: &[f64], alpha: f64) {
