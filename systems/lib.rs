@@ -4,6 +4,7 @@
 pub mod assemble;
 pub mod blend_shapes;
 pub mod capture;
+pub mod kernels;
 pub mod log;
 pub mod schedule;
 pub mod simulation;

@@ -1,13 +1,13 @@
 //! The frame: ten chained stages (ARCHITECTURE.md 2). A stage runs only when the scene declares
-//! what it works on. Remesh, the two constraint stages, PropertyResample and AnchorWalk have no
-//! systems yet: their features are issues 4-6.
+//! what it works on: the constraint stages only with kernels. Remesh, PropertyResample and
+//! AnchorWalk have no systems yet (issues 5, 4 and 6).
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
-use skinsim::model::{PatchCaptures, PatchMotion, Stage, Timings};
+use skinsim::model::{Kernel, PatchCaptures, PatchMotion, Stage, Timings};
 
 use crate::log::{log_frame, wants_logging};
-use crate::{assemble, blend_shapes, capture, solve, writeback};
+use crate::{assemble, blend_shapes, capture, kernels, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Frame;
@@ -24,8 +24,8 @@ pub fn build_schedule() -> Schedule {
             StageSet(Stage::BlendShapes).run_if(any_with_component::<PatchMotion>),
             StageSet(Stage::Remesh),
             StageSet(Stage::PropertyResample),
-            StageSet(Stage::ConstraintResample),
-            StageSet(Stage::ConstraintAdjust),
+            StageSet(Stage::ConstraintResample).run_if(any_with_component::<Kernel>),
+            StageSet(Stage::ConstraintAdjust).run_if(any_with_component::<Kernel>),
             StageSet(Stage::AnchorWalk),
             StageSet(Stage::Assemble),
             StageSet(Stage::Solve),
@@ -35,6 +35,8 @@ pub fn build_schedule() -> Schedule {
             .chain(),
     );
     s.add_systems(timed(Stage::BlendShapes, blend_shapes::apply_motions));
+    s.add_systems(timed(Stage::ConstraintResample, kernels::resample_kernels));
+    s.add_systems(timed(Stage::ConstraintAdjust, kernels::adjust_kernels));
     s.add_systems(timed(Stage::Assemble, assemble::gather_bodies));
     s.add_systems(timed(Stage::Solve, solve::solve_patches));
     s.add_systems(timed(

@@ -251,3 +251,51 @@ impl LayerSprings {
         &self.0
     }
 }
+
+// ---------------------------------------------------------------- constraint kernels
+
+/// An LK14 constraint kernel (4.1-4.2): holds the `upper` layer to the `lower` one around a
+/// material-space centre, with support radius half the critical wavelength.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct Kernel {
+    pub upper: Entity,
+    pub lower: Entity,
+    pub shape: crate::coupling::kernels::KernelShape,
+    /// Whether ConstraintAdjust centres the weights (LK14 4.2.1).
+    pub adjust: bool,
+}
+
+/// Kernel -> Patch.
+#[derive(Component, Clone, Copy, Debug)]
+#[relationship(relationship_target = PatchKernels)]
+pub struct KernelOf(pub Entity);
+
+#[derive(Component, Debug, Default)]
+#[relationship_target(relationship = KernelOf, linked_spawn)]
+pub struct PatchKernels(Vec<Entity>);
+
+impl PatchKernels {
+    pub fn entities(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+/// A kernel's weights on one layer: (vertex, weight).
+pub type LayerWeights = Vec<(Entity, f64)>;
+
+/// The area-weighted truncated Gaussian sampled on both layers' current meshes (LK14 eq. 4.3),
+/// written by ConstraintResample.
+#[derive(Component, Clone, Debug, Default)]
+pub struct KernelSamples {
+    pub upper: LayerWeights,
+    pub lower: LayerWeights,
+}
+
+/// The weights the solver uses: the samples after ConstraintAdjust (LK14 eq. 4.4-4.8).
+#[derive(Component, Clone, Debug, Default)]
+pub struct KernelWeights {
+    pub upper: LayerWeights,
+    pub lower: LayerWeights,
+    /// What the adjustment could do on each layer.
+    pub adjusted: [Option<crate::coupling::kernels::Adjusted>; 2],
+}

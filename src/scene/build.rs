@@ -25,6 +25,16 @@ pub struct BuiltPatch {
     pub solver: SolverSpec,
     pub layers: Vec<BuiltLayer>,
     pub drivers: Vec<BuiltDriver>,
+    pub couplings: Vec<BuiltCoupling>,
+}
+
+/// A coupling's kernels, clustered at load (SI units).
+#[derive(Clone, Debug)]
+pub struct BuiltCoupling {
+    pub upper: usize,
+    pub lower: usize,
+    pub kernels: Vec<crate::coupling::kernels::KernelShape>,
+    pub adjust: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -367,7 +377,112 @@ impl Builder {
                 }
             });
         }
-        Ok(BuiltPatch { name: p.name.clone(), solver, layers, drivers })
+        let couplings = p
+            .couplings
+            .iter()
+            .enumerate()
+            .map(|(ci, c)| self.coupling(&format!("{at}.couplings[{ci}]"), c, &layers, &index, len, stress))
+            .collect::<Result<_, _>>()?;
+        Ok(BuiltPatch { name: p.name.clone(), solver, layers, drivers, couplings })
+    }
+
+    /// Validates a coupling and clusters its kernels (LK14 4.1) on a fine grid of the upper
+    /// layer's material rectangle, 10 grid cells per smallest wavelength.
+    fn coupling(
+        &self,
+        at: &str,
+        c: &CouplingSpec,
+        layers: &[BuiltLayer],
+        index: &HashMap<String, usize>,
+        len: f64,
+        stress: f64,
+    ) -> Result<BuiltCoupling, SceneError> {
+        let find = |field: &str, name: &str| {
+            index
+                .get(name)
+                .copied()
+                .ok_or_else(|| self.err(format!("{at}.{field}"), format!("no layer named \"{name}\"")))
+        };
+        let (ui, li) = (find("upper", &c.upper)?, find("lower", &c.lower)?);
+        let (upper, lower) = (&layers[ui], &layers[li]);
+        if upper.kind != LayerKind::Shell {
+            return Err(self.err(format!("{at}.upper"), format!("\"{}\" is not a shell layer", upper.name)));
+        }
+        if ui == li {
+            return Err(self.err(format!("{at}.lower"), "a layer cannot be coupled to itself"));
+        }
+        let LayerMesh::Surface(lower_mesh) = &lower.mesh else {
+            return Err(
+                self.err(format!("{at}.lower"), format!("\"{}\" is a volume: kernels need a surface", lower.name))
+            );
+        };
+        let LayerMesh::Surface(upper_mesh) = &upper.mesh else { unreachable!("shells are surfaces") };
+        let positive = |field: &str, v: f64| {
+            if v > 0.0 && v.is_finite() {
+                Ok(v)
+            } else {
+                Err(self.err(format!("{at}.wavelength.{field}"), format!("must be > 0 (got {v})")))
+            }
+        };
+        let upper_e = upper.material.map_or(0.0, |m| m.young);
+        let upper_h = upper.thickness.unwrap_or(0.0);
+        let lambda = match &c.wavelength {
+            WavelengthSpec::Constant(l) => positive("0", *l)? * len,
+            WavelengthSpec::Eq31 { constant, lower: given } => {
+                let (e, h) = match (given, lower.material, lower.thickness) {
+                    (Some((e, h)), ..) => (positive("lower.0", *e)? * stress, positive("lower.1", *h)? * len),
+                    (None, Some(m), Some(h)) => (m.young, h),
+                    _ => {
+                        return Err(self.err(
+                            format!("{at}.wavelength.lower"),
+                            format!("\"{}\" has no shell material: state (young, thickness)", lower.name),
+                        ))
+                    }
+                };
+                crate::coupling::kernels::wavelength_two_layer(positive("constant", *constant)?, upper_h, h, upper_e, e)
+            }
+            WavelengthSpec::Film { substrate: (e, nu) } => {
+                let e = positive("substrate.0", *e)? * stress;
+                if !(*nu > -1.0 && *nu < 0.5) {
+                    return Err(
+                        self.err(format!("{at}.wavelength.substrate.1"), format!("must be in (-1, 0.5) (got {nu})"))
+                    );
+                }
+                let nu_f = upper.material.map_or(0.0, |m| m.poisson);
+                crate::coupling::kernels::wavelength_film(upper_h, upper_e / (1.0 - nu_f * nu_f), e / (1.0 - nu * nu))
+            }
+        };
+        // Refused: a wavelength the patch cannot hold, or supports too small to hold a vertex.
+        let (lo, hi) =
+            upper_mesh.uv.iter().fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), u| (a.min(*u), b.max(*u)));
+        let extent = (hi - lo).max_element();
+        if lambda > extent {
+            return Err(self.err(
+                format!("{at}.wavelength"),
+                format!("the wavelength {:.4} m is larger than the patch ({:.4} m)", lambda, extent),
+            ));
+        }
+        for (name, m) in [(&upper.name, upper_mesh), (&lower.name, lower_mesh)] {
+            let spacing = mean_edge(m);
+            if 0.5 * lambda < spacing {
+                return Err(self.err(
+                    format!("{at}.wavelength"),
+                    format!(
+                        "the kernel radius (half the wavelength, {:.3e} m) is below the mesh spacing of \"{name}\" \
+                         ({spacing:.3e} m): refine the mesh or raise the wavelength",
+                        0.5 * lambda
+                    ),
+                ));
+            }
+        }
+        let cell = DVec2::new(lambda / 10.0, lambda / 10.0 * 0.75f64.sqrt());
+        let cells = ((hi - lo) / cell).ceil().max(DVec2::ONE);
+        let fine =
+            crate::mesh::grid(hi - lo, (cells.x as u32, cells.y as u32), crate::mesh::GridPattern::Equilateral, 0.0);
+        let points: Vec<DVec2> = fine.uv.iter().map(|u| *u + lo).collect();
+        let wavelength = vec![lambda; points.len()];
+        let kernels = crate::coupling::kernels::build_kernels(&points, &fine.faces, &wavelength, c.seed);
+        Ok(BuiltCoupling { upper: ui, lower: li, kernels, adjust: c.adjust })
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -839,6 +954,16 @@ fn periodic_seams(m: &SurfaceMesh, axis: usize) -> Vec<SeamHinge> {
         }
     }
     out
+}
+
+/// Mean edge length of a surface mesh in material space.
+fn mean_edge(m: &SurfaceMesh) -> f64 {
+    let total: f64 = m
+        .faces
+        .iter()
+        .map(|f| (0..3).map(|k| (m.uv[f[k] as usize] - m.uv[f[(k + 1) % 3] as usize]).length()).sum::<f64>())
+        .sum();
+    total / (3 * m.faces.len()).max(1) as f64
 }
 
 fn bbox(points: &[DVec3]) -> (DVec3, DVec3) {

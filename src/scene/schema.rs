@@ -98,6 +98,47 @@ pub struct PatchSpec {
     pub layers: Vec<LayerSpec>,
     #[serde(default)]
     pub drivers: Vec<DriverSpec>,
+    /// LK14 constraint kernels between pairs of layers (chapter 4).
+    #[serde(default)]
+    pub couplings: Vec<CouplingSpec>,
+}
+
+/// Constraint kernels that hold `upper` to `lower` at frequencies below the critical
+/// wavelength (LK14 chapter 4): clustered once at load, resampled whenever either mesh changes.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Coupling")]
+pub struct CouplingSpec {
+    /// A shell layer.
+    pub upper: String,
+    /// A shell or kinematic layer (the blend-shape base).
+    pub lower: String,
+    pub wavelength: WavelengthSpec,
+    /// Seed of the first cluster centre (LK14 4.1).
+    #[serde(default)]
+    pub seed: u64,
+    /// Adjust the sampled weights so their centroid is the kernel centre (LK14 4.2.1). Off only
+    /// to measure what the adjustment does.
+    #[serde(default = "default_true")]
+    pub adjust: bool,
+}
+
+/// Where a coupling's critical wavelength comes from.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum WavelengthSpec {
+    /// A declared wavelength (length units), the same everywhere.
+    Constant(f64),
+    /// LK14 eq. 3.1: constant x (h_upper h_lower)^(1/2) (E_upper / E_lower)^(1/6), from the two
+    /// layers' materials; `lower` = (young, thickness) stands in for a kinematic lower layer's
+    /// (the substructure under a blend shape: LK14 uses 0.5 MPa, 15 mm).
+    Eq31 {
+        constant: f64,
+        #[serde(default)]
+        lower: Option<(f64, f64)>,
+    },
+    /// Stiff film on a deep substrate: 2 pi h (Ebar_f / (3 Ebar_s))^(1/3), the film the upper
+    /// layer, `substrate` = (young, poisson) of the foundation.
+    Film { substrate: (f64, f64) },
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
@@ -131,6 +172,9 @@ pub struct SolverSpec {
     /// How Newton solves H dx = -g.
     #[serde(default)]
     pub linear: LinearSolver,
+    /// How the constrained (KKT) system of a patch with kernels is solved (LK14 eq. 5.1).
+    #[serde(default)]
+    pub kkt: crate::solve::kkt::KktMethod,
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
@@ -162,6 +206,7 @@ impl Default for SolverSpec {
             perturbation: None,
             stability_check: true,
             linear: LinearSolver::Direct,
+            kkt: Default::default(),
         }
     }
 }

@@ -160,6 +160,17 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
             BuiltDriver::Pin { .. } => {}
         }
     }
+    for c in &p.couplings {
+        let batch: Vec<_> = c
+            .kernels
+            .iter()
+            .map(|&shape| {
+                let kernel = Kernel { upper: layers[c.upper], lower: layers[c.lower], shape, adjust: c.adjust };
+                (kernel, KernelOf(patch), KernelSamples::default(), KernelWeights::default())
+            })
+            .collect();
+        world.spawn_batch(batch);
+    }
     if !motion.motions.is_empty() {
         world.entity_mut(patch).insert(motion);
     }

@@ -10,6 +10,8 @@ use crate::physics::membrane::MembraneRest;
 use crate::physics::tet::TetRest;
 use crate::physics::{ConstitutiveModel, HingeModel, Lame};
 
+use super::constraints::Constraints;
+use super::kkt::KktSystem;
 use super::linear::CholeskySolver;
 use super::pattern::Pattern;
 
@@ -98,6 +100,10 @@ pub struct SolverBody {
     pub length_scale: f64,
     /// Sparse pattern and factorization: None until first needed, dropped on topology change.
     pub system: Option<(Pattern, CholeskySolver)>,
+    /// LK14 kernel constraints (empty without kernels) and their KKT solver, dropped with the
+    /// pattern or when the kernels are resampled.
+    pub constraints: Constraints,
+    pub kkt: Option<KktSystem>,
     pub report: PatchReport,
 }
 
@@ -118,6 +124,7 @@ impl SolverBody {
     /// Drops the cached pattern (call after any change of connectivity or fixed coordinates).
     pub fn invalidate_pattern(&mut self) {
         self.system = None;
+        self.kkt = None;
     }
 
     /// Copies every tied coordinate from its master, so shared DOFs start equal.
@@ -175,6 +182,8 @@ impl SolverBody {
             length_scale: (hi - lo).length(),
             elements: el,
             system: None,
+            constraints: Constraints::default(),
+            kkt: None,
             report: Default::default(),
         }
     }

@@ -99,3 +99,18 @@ impl CholeskySolver {
         matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
     }
 }
+
+/// y = A x for the symmetric matrix whose lower triangle is stored as CSC (col_ptr, row_idx).
+pub fn symmetric_product_into(col_ptr: &[u32], row_idx: &[u32], values: &[f64], x: &[f64], y: &mut [f64]) {
+    y.iter_mut().for_each(|v| *v = 0.0);
+    for c in 0..col_ptr.len() - 1 {
+        let span = col_ptr[c] as usize..col_ptr[c + 1] as usize;
+        for (&r, &v) in row_idx[span.clone()].iter().zip(&values[span]) {
+            let r = r as usize;
+            y[r] += v * x[c];
+            if r != c {
+                y[c] += v * x[r];
+            }
+        }
+    }
+}

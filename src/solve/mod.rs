@@ -2,7 +2,10 @@
 //! scatter maps and symbolic factorization, and Newton with Armijo backtracking.
 
 pub mod body;
+mod constrained;
+pub mod constraints;
 pub mod eval;
+pub mod kkt;
 pub mod linear;
 pub mod newton;
 pub mod ordering;

@@ -5,6 +5,7 @@ use glam::DVec3;
 
 use super::body::SolverBody;
 use super::eval::{assemble, energy, Assembly};
+use super::kkt::KktSystem;
 use super::linear::CholeskySolver;
 use super::pattern::{Pattern, NONE};
 use crate::physics::psd::Filter;
@@ -40,6 +41,8 @@ pub struct FrameOutcome {
     /// Numeric Cholesky factorizations, and conjugate-gradient iterations (Krylov mode).
     pub factorizations: u32,
     pub cg_iterations: u32,
+    /// Largest kernel-constraint violation, relative to the patch size (0 without kernels).
+    pub constraint_violation: f64,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
     /// factorization and triangular solves, line-search energy evaluations.
     pub counters: SolveCounters,
@@ -53,15 +56,53 @@ pub struct SolveCounters {
     pub line_search_ms: f64,
 }
 
+/// The implicit-Euler predictor x_n + h v_n (prescribed coordinates stay); empty when quasistatic.
+pub(super) fn predictor(body: &SolverBody, dynamic: bool, dt: f64) -> Vec<DVec3> {
+    if !dynamic {
+        return Vec::new();
+    }
+    body.x
+        .iter()
+        .zip(&body.v)
+        .zip(&body.fixed)
+        .map(|((x, v), f)| {
+            let mut p = *x + *v * dt;
+            for k in 0..3 {
+                if f[k] {
+                    p[k] = x[k];
+                }
+            }
+            p
+        })
+        .collect()
+}
+
 /// The incremental potential's inertia term: sum m / (2 h^2) |x - x_hat|^2 (LK14 eq. 5.2).
-struct Inertia<'a> {
-    x_hat: &'a [DVec3],
-    mass: &'a [f64],
-    inv_h2: f64,
+pub(super) struct Inertia<'a> {
+    pub x_hat: &'a [DVec3],
+    pub mass: &'a [f64],
+    pub inv_h2: f64,
 }
 
 impl Inertia<'_> {
-    fn energy(&self, x: &[DVec3]) -> f64 {
+    /// Adds the inertia gradient and mass diagonal; returns the sum of the inertial forces.
+    pub fn add_to(&self, pattern: &Pattern, x: &[DVec3], grad: &mut [f64], values: &mut [f64]) -> f64 {
+        let mut total = 0.0;
+        for (v, ((x, xh), m)) in x.iter().zip(self.x_hat).zip(self.mass).enumerate() {
+            let f = (*x - *xh) * (m * self.inv_h2);
+            total += f.length();
+            for k in 0..3 {
+                let d = pattern.dof[3 * v + k];
+                if d != NONE {
+                    grad[d as usize] += f[k];
+                    values[pattern.diag[d as usize] as usize] += m * self.inv_h2;
+                }
+            }
+        }
+        total
+    }
+
+    pub fn energy(&self, x: &[DVec3]) -> f64 {
         x.iter()
             .zip(self.x_hat)
             .zip(self.mass)
@@ -76,11 +117,26 @@ pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Res
     let (pattern, mut chol) = match body.system.take() {
         Some(system) => system,
         None => {
-            let p = Pattern::build(&body.x, &body.fixed, &body.tie, &body.elements);
+            let groups = body.constraints.vertex_groups();
+            let p = Pattern::build_with_groups(&body.x, &body.fixed, &body.tie, &body.elements, &groups);
             let s = CholeskySolver::analyze(&p);
             (p, s)
         }
     };
+    if !body.constraints.is_empty() {
+        let mut kkt = match body.kkt.take() {
+            Some(k) => k,
+            None => KktSystem::build(&pattern, &body.constraints, settings.kkt),
+        };
+        let before = kkt.factorizations;
+        let result = super::constrained::newton_kkt(body, &pattern, &mut kkt, settings, dt).map(|mut o| {
+            o.factorizations = (kkt.factorizations - before) as u32;
+            o
+        });
+        body.kkt = Some(kkt);
+        body.system = Some((pattern, chol));
+        return result;
+    }
     let before = chol.factorizations;
     let result = newton(body, &pattern, &mut chol, settings, dt).map(|mut o| {
         o.factorizations = (chol.factorizations - before) as u32;
@@ -101,23 +157,7 @@ fn newton(
     body.sync_ties();
     let dynamic = settings.mode == SolveMode::ImplicitEuler;
     let x_n = body.x.clone();
-    let x_hat: Vec<DVec3> = if dynamic {
-        x_n.iter()
-            .zip(&body.v)
-            .zip(&body.fixed)
-            .map(|((x, v), f)| {
-                let mut p = *x + *v * dt;
-                for k in 0..3 {
-                    if f[k] {
-                        p[k] = x[k];
-                    }
-                }
-                p
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
+    let x_hat = predictor(body, dynamic, dt);
     if dynamic {
         body.x.copy_from_slice(&x_hat);
     }
@@ -152,17 +192,7 @@ fn newton(
             assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
         out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
         if let Some(inr) = &inertia {
-            for (v, ((x, xh), m)) in body.x.iter().zip(inr.x_hat).zip(inr.mass).enumerate() {
-                let f = (*x - *xh) * (m * inr.inv_h2);
-                force_scale += f.length();
-                for k in 0..3 {
-                    let d = pattern.dof[3 * v + k];
-                    if d != NONE {
-                        grad[d as usize] += f[k];
-                        values[pattern.diag[d as usize] as usize] += m * inr.inv_h2;
-                    }
-                }
-            }
+            force_scale += inr.add_to(pattern, &body.x, &mut grad, &mut values);
         }
         let phi = total(&parts, &body.x);
         let gnorm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
@@ -226,7 +256,7 @@ fn newton(
                         body,
                         pattern,
                         &dx,
-                        &grad,
+                        slope,
                         phi,
                         residual,
                         energy_scale,
@@ -272,7 +302,8 @@ fn newton(
                 *d = -g * scale;
             }
         }
-        if !line_search(body, pattern, &dx, &grad, phi, residual, energy_scale, settings.tolerance, &total, &mut out) {
+        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+        if !line_search(body, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out) {
             break;
         }
     }
@@ -287,11 +318,11 @@ fn newton(
 /// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
 /// when no step is accepted (the state is restored; near round-off it counts as converged).
 #[allow(clippy::too_many_arguments)]
-fn line_search(
+pub(super) fn line_search(
     body: &mut SolverBody,
     pattern: &Pattern,
     dx: &[f64],
-    grad: &[f64],
+    slope: f64,
     phi: f64,
     residual: f64,
     energy_scale: f64,
@@ -299,7 +330,6 @@ fn line_search(
     total: &dyn Fn(&[f64; 4], &[DVec3]) -> f64,
     out: &mut FrameOutcome,
 ) -> bool {
-    let slope: f64 = dx.iter().zip(grad).map(|(a, b)| a * b).sum();
     let clock = std::time::Instant::now();
     let x0 = body.x.clone();
     let mut alpha = 1.0;
@@ -437,7 +467,7 @@ fn mean_abs_diagonal(pattern: &Pattern, h: &[f64]) -> f64 {
 
 /// Factorizes H + sigma I for the smallest sigma = first x mean|diag| x growth^k (k < tries)
 /// that is positive definite; the shifted values go to `scratch`. Returns sigma.
-fn factorize_shifted(
+pub(super) fn factorize_shifted(
     chol: &mut CholeskySolver,
     pattern: &Pattern,
     h: &[f64],
@@ -470,20 +500,10 @@ fn symmetric_product(pattern: &Pattern, values: &[f64], x: &[f64]) -> Vec<f64> {
 
 /// y = H x into a caller's buffer (the CG loop).
 fn symmetric_product_into(pattern: &Pattern, values: &[f64], x: &[f64], y: &mut [f64]) {
-    y.iter_mut().for_each(|v| *v = 0.0);
-    for c in 0..pattern.n {
-        let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
-        for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
-            let r = r as usize;
-            y[r] += v * x[c];
-            if r != c {
-                y[c] += v * x[r];
-            }
-        }
-    }
+    super::linear::symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, values, x, y);
 }
 
-fn step(x: &mut [DVec3], x0: &[DVec3], dof: &[u32], dx: &[f64], alpha: f64) {
+pub(super) fn step(x: &mut [DVec3], x0: &[DVec3], dof: &[u32], dx: &[f64], alpha: f64) {
     for (v, (p, p0)) in x.iter_mut().zip(x0).enumerate() {
         for k in 0..3 {
             let d = dof[3 * v + k];

@@ -43,6 +43,18 @@ impl Pattern {
         tie: &[(u32, [bool; 3])],
         elements: &Elements,
     ) -> Pattern {
+        Self::build_with_groups(points, fixed, tie, elements, &[])
+    }
+
+    /// As `build`, with every pair of vertices inside each group coupled as well (the J^T J
+    /// term of a kernel constraint's augmented Hessian, solve::kkt).
+    pub fn build_with_groups(
+        points: &[glam::DVec3],
+        fixed: &[[bool; 3]],
+        tie: &[(u32, [bool; 3])],
+        elements: &Elements,
+        groups: &[Vec<u32>],
+    ) -> Pattern {
         let nv = fixed.len();
         let mut dof = vec![NONE; 3 * nv];
         let mut n = 0u32;
@@ -86,6 +98,7 @@ impl Pattern {
         elements.hinges.iter().for_each(|e| link(&e.v));
         elements.tets.iter().for_each(|e| link(&e.v));
         elements.springs.iter().for_each(|e| link(&e.v));
+        groups.iter().for_each(|g| link(g));
         for (v, a) in adj.iter_mut().enumerate() {
             a.push(v as u32); // every free DOF has a diagonal entry
             a.sort_unstable();
@@ -159,7 +172,8 @@ impl Pattern {
         p
     }
 
-    fn position(&self, a: u32, b: u32) -> u32 {
+    /// Position of the (symmetric) entry of DOFs a and b in the values.
+    pub fn position(&self, a: u32, b: u32) -> u32 {
         let (r, c) = if a >= b { (a, b) } else { (b, a) };
         let (s, e) = (self.col_ptr[c as usize] as usize, self.col_ptr[c as usize + 1] as usize);
         let k = self.row_idx[s..e].binary_search(&r).expect("pattern holds every element pair");

@@ -1,0 +1,156 @@
+//! Newton on a patch with LK14 kernel constraints (eq. 5.1 quasistatic, eq. 5.2 in optimization
+//! form): SQP steps from the KKT system, an l1 merit function Phi + rho |c|_1 for the Armijo
+//! line search (rho >= 2 max |lambda| keeps the step a descent direction), convergence when the
+//! Lagrangian gradient is below the tolerance and every constraint below CONSTRAINT_TOLERANCE.
+//!
+//! No saddle test here: the unconstrained Hessian of a held shell is indefinite at every
+//! buckled state, so `stability_check` applies to unconstrained patches only; held shells
+//! leave the flat state through the scene's perturbation.
+
+use glam::DVec3;
+
+use super::body::SolverBody;
+use super::eval::{assemble, Assembly};
+use super::kkt::KktSystem;
+use super::newton::{line_search, predictor, FrameOutcome, Inertia};
+use super::pattern::{Pattern, NONE};
+use crate::physics::psd::Filter;
+use crate::physics::Projection;
+use crate::scene::schema::{SolveMode, SolverSpec};
+
+/// Largest constraint violation at convergence, relative to the patch size (PHYSICS.md 2).
+pub const CONSTRAINT_TOLERANCE: f64 = 1e-9;
+const ADAPTIVE_SWITCH: f64 = 1e-3;
+const FORCE_FLOOR: f64 = 1e-6;
+const STALL: usize = 4;
+
+pub(super) fn newton_kkt(
+    body: &mut SolverBody,
+    pattern: &Pattern,
+    kkt: &mut KktSystem,
+    settings: &SolverSpec,
+    dt: f64,
+) -> Result<FrameOutcome, String> {
+    let (n, m) = (pattern.n, body.constraints.rows());
+    body.sync_ties();
+    let dynamic = settings.mode == SolveMode::ImplicitEuler;
+    let x_n = body.x.clone();
+    let x_hat = predictor(body, dynamic, dt);
+    if dynamic {
+        body.x.copy_from_slice(&x_hat);
+    }
+    let mass = if dynamic { body.mass.clone() } else { Vec::new() };
+    let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &mass, inv_h2: 1.0 / (dt * dt) });
+    let constraints = std::mem::take(&mut body.constraints);
+    let violation_l1 =
+        |x: &[DVec3]| constraints.values(x).iter().map(|c| c.x.abs() + c.y.abs() + c.z.abs()).sum::<f64>();
+
+    let energy_scale = body.elements.energy_scale(body.length_scale);
+    let (mut grad, mut values, mut dx) = (vec![0.0; n], vec![0.0; pattern.nnz()], vec![0.0; n]);
+    let (mut lambda, mut next_lambda, mut jac) = (vec![0.0; m], vec![0.0; m], Vec::new());
+    let mut rho = 0.0f64;
+    let mut out = FrameOutcome::default();
+    let mut projecting = true;
+    let mut history: Vec<f64> = Vec::new();
+    let result = loop {
+        let filter = match settings.projection {
+            Projection::None => Filter::Exact,
+            Projection::Clamp => Filter::Clamp,
+            Projection::Abs => Filter::Abs,
+            Projection::Adaptive if !projecting => Filter::Exact,
+            Projection::Adaptive => Filter::Clamp,
+        };
+        let clock = std::time::Instant::now();
+        let Assembly { parts, mut force_scale } =
+            assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
+        if let Some(inr) = &inertia {
+            force_scale += inr.add_to(pattern, &body.x, &mut grad, &mut values);
+        }
+        let c: Vec<f64> = constraints.values(&body.x).iter().flat_map(|v| v.to_array()).collect();
+        constraints.jacobian(&body.x, &mut jac);
+        out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
+        // Lagrangian gradient g + J^T lambda.
+        let mut lagrangian = grad.clone();
+        for (e, &(r, v, coord)) in constraints.entries.iter().enumerate() {
+            let d = pattern.dof[3 * v as usize + coord as usize];
+            if d != NONE {
+                lagrangian[d as usize] += jac[e] * lambda[r as usize];
+            }
+        }
+        let phi = parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(&body.x));
+        let gnorm = lagrangian.iter().map(|g| g * g).sum::<f64>().sqrt();
+        if !phi.is_finite() || !gnorm.is_finite() {
+            break Err(format!("non-finite state after {} Newton iterations", out.iterations));
+        }
+        let reference = force_scale.max(FORCE_FLOOR * energy_scale / body.length_scale.max(f64::MIN_POSITIVE));
+        let residual = if reference > 0.0 { gnorm / reference } else { 0.0 };
+        let violation = c.iter().fold(0.0f64, |a, v| a.max(v.abs())) / body.length_scale.max(f64::MIN_POSITIVE);
+        out.energy = phi;
+        out.parts = parts;
+        out.residual = residual;
+        out.constraint_violation = violation;
+        if residual < ADAPTIVE_SWITCH {
+            projecting = false;
+        }
+        history.push(residual);
+        let stalled = history.len() > STALL
+            && residual <= 1e3 * settings.tolerance
+            && residual >= 0.5 * history[history.len() - 1 - STALL];
+        if violation <= CONSTRAINT_TOLERANCE && (n == 0 || residual <= settings.tolerance || stalled) {
+            out.converged = true;
+            break Ok(());
+        }
+        if out.iterations >= settings.max_iterations {
+            break Ok(());
+        }
+        let clock = std::time::Instant::now();
+        let solved = kkt.step(pattern, &values, &jac, &grad, &c, &mut dx, &mut next_lambda);
+        out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+        if solved.is_ok() {
+            rho = rho.max(2.0 * next_lambda.iter().fold(0.0f64, |a, l| a.max(l.abs())));
+        }
+        let c_l1: f64 = c.iter().map(|v| v.abs()).sum();
+        let merit_slope = slope - rho * c_l1;
+        if solved.is_err() || merit_slope.is_nan() || merit_slope >= 0.0 {
+            if filter == Filter::Exact && settings.projection != Projection::None {
+                projecting = true; // H15: fall back to the projected Hessian
+                out.regularized += 1;
+                continue;
+            }
+            break Err(format!(
+                "the constrained Newton system has no descent direction after {} iterations",
+                out.iterations
+            ));
+        }
+        let merit = |parts: &[f64; 4], x: &[DVec3]| {
+            parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x)) + rho * violation_l1(x)
+        };
+        let phi_merit = phi + rho * c_l1;
+        let accepted = line_search(
+            body,
+            pattern,
+            &dx,
+            merit_slope,
+            phi_merit,
+            residual,
+            energy_scale,
+            settings.tolerance,
+            &merit,
+            &mut out,
+        );
+        if !accepted {
+            // A rejected step at the round-off floor still has to satisfy the constraints.
+            out.converged &= violation <= CONSTRAINT_TOLERANCE;
+            break Ok(());
+        }
+        std::mem::swap(&mut lambda, &mut next_lambda);
+    };
+    body.constraints = constraints;
+    if dynamic && result.is_ok() {
+        for ((v, x), x0) in body.v.iter_mut().zip(&body.x).zip(&x_n) {
+            *v = (*x - *x0) / dt;
+        }
+    }
+    result.map(|_| out)
+}

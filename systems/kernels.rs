@@ -1,0 +1,80 @@
+//! ConstraintResample and ConstraintAdjust (LK14 4.2): a kernel's weights are recomputed only
+//! when it is new or when the mesh of one of its layers changed (its `TopologyEpoch` was
+//! written), so a remesh plugs in by bumping the epoch.
+
+use std::collections::HashMap;
+
+use bevy_ecs::prelude::*;
+use glam::DVec2;
+use skinsim::coupling::kernels::{adjust, sample, vertex_areas, Sample, SupportIndex};
+use skinsim::model::*;
+
+/// One layer's material-space mesh, indexed for support queries.
+struct LayerSpace {
+    vertices: Vec<Entity>,
+    area: Vec<f64>,
+    index: SupportIndex,
+}
+
+type LayerMeshItems<'a> = (Ref<'a, TopologyEpoch>, &'a LayerVertices, Option<&'a LayerFaces>);
+
+pub fn resample_kernels(
+    mut kernels: Query<(Ref<Kernel>, &mut KernelSamples)>,
+    layers: Query<LayerMeshItems>,
+    points: Query<&MaterialPos>,
+    faces: Query<&FaceVerts>,
+) {
+    let mut spaces: HashMap<Entity, LayerSpace> = HashMap::new();
+    let changed = |l: Entity| layers.get(l).is_ok_and(|(epoch, ..)| epoch.is_changed());
+    for (kernel, mut samples) in &mut kernels {
+        if !(kernel.is_changed() || changed(kernel.upper) || changed(kernel.lower)) {
+            continue;
+        }
+        let mut on = |layer: Entity| -> LayerWeights {
+            let space = spaces.entry(layer).or_insert_with(|| layer_space(layer, &layers, &points, &faces));
+            let s = sample(&space.index, &space.area, kernel.shape.centre, kernel.shape.radius);
+            s.vertices.iter().zip(&s.weights).map(|(&v, &w)| (space.vertices[v as usize], w)).collect()
+        };
+        let upper = on(kernel.upper);
+        let lower = on(kernel.lower);
+        *samples = KernelSamples { upper, lower };
+    }
+}
+
+fn layer_space(
+    layer: Entity,
+    layers: &Query<LayerMeshItems>,
+    points: &Query<&MaterialPos>,
+    faces: &Query<&FaceVerts>,
+) -> LayerSpace {
+    let (_, verts, lfaces) = layers.get(layer).expect("a kernel's layer");
+    let vertices = verts.entities().to_vec();
+    let slot: HashMap<Entity, u32> = vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
+    let pts: Vec<DVec2> = vertices.iter().map(|&v| points.get(v).map_or(DVec2::ZERO, |p| p.0)).collect();
+    let tris: Vec<[u32; 3]> = lfaces
+        .map(|f| f.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|fv| fv.0.map(|e| slot[&e])).collect())
+        .unwrap_or_default();
+    let area = vertex_areas(&pts, &tris);
+    LayerSpace { index: SupportIndex::new(&pts), vertices, area }
+}
+
+pub fn adjust_kernels(
+    mut kernels: Query<(&Kernel, Ref<KernelSamples>, &mut KernelWeights)>,
+    points: Query<&MaterialPos>,
+) {
+    for (kernel, samples, mut weights) in &mut kernels {
+        if !samples.is_changed() {
+            continue;
+        }
+        let side = |w: &LayerWeights| {
+            let pts: Vec<DVec2> = w.iter().map(|(v, _)| points.get(*v).map_or(DVec2::ZERO, |p| p.0)).collect();
+            let mut s = Sample { vertices: (0..w.len() as u32).collect(), weights: w.iter().map(|x| x.1).collect() };
+            let outcome = kernel.adjust.then(|| adjust(&pts, &mut s, kernel.shape.target));
+            let out: LayerWeights = w.iter().zip(&s.weights).map(|((v, _), &x)| (*v, x)).collect();
+            (out, outcome)
+        };
+        let (upper, a) = side(&samples.upper);
+        let (lower, b) = side(&samples.lower);
+        *weights = KernelWeights { upper, lower, adjusted: [a, b] };
+    }
+}
