@@ -19,12 +19,13 @@ pub fn solve_patches(
         .map(|(patch, settings, body)| {
             let body: &mut SolverBody = body;
             let out = solve_frame(body, &settings.0, clock.dt);
-            let counts = (body.vertices.len(), body.face_count, body.tet_count, body.inverted_tets());
+            let counts =
+                (body.vertices.len(), body.face_count, body.tet_count, body.inverted_tets(), body.constraints.rows());
             (patch.name.clone(), counts, out)
         })
         .collect();
     report.patches.clear();
-    for (name, (vertices, faces, tets, inverted), out) in outcomes {
+    for (name, (vertices, faces, tets, inverted, constraints), out) in outcomes {
         match out {
             Ok(o) => report.patches.push(PatchReport {
                 name,
@@ -45,6 +46,8 @@ pub fn solve_patches(
                 escapes: o.escapes,
                 factorizations: o.factorizations,
                 cg_iterations: o.cg_iterations,
+                constraints,
+                constraint_violation: o.constraint_violation,
                 inverted,
             }),
             Err(reason) => {

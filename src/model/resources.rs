@@ -110,6 +110,9 @@ pub struct PatchReport {
     /// Numeric Cholesky factorizations and conjugate-gradient iterations in the frame.
     pub factorizations: u32,
     pub cg_iterations: u32,
+    /// LK14 kernels: constraint rows and the largest violation relative to the patch size.
+    pub constraints: usize,
+    pub constraint_violation: f64,
     /// Tetrahedra with non-positive volume at the end of the frame (models that allow inversion).
     pub inverted: usize,
     /// Time inside the solve: element assembly, factorization, line search (ms).

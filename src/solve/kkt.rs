@@ -62,7 +62,9 @@ enum Solver {
 }
 
 impl KktSystem {
-    pub fn build(h: &Pattern, c: &Constraints, method: KktMethod) -> KktSystem {
+    /// `augment`: whether `step` may add rho J^T J (the pattern must then hold the kernels'
+    /// vertex groups, Pattern::build_with_groups).
+    pub fn build(h: &Pattern, c: &Constraints, method: KktMethod, augment: bool) -> KktSystem {
         let (n, m) = (h.n, c.rows());
         // Constraint entries per DOF column: (row n + r, entry).
         let mut by_col: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
@@ -133,7 +135,7 @@ impl KktSystem {
             }
         }
         let mut pairs = Vec::new();
-        for row in &per_row {
+        for row in per_row.iter().filter(|_| augment) {
             for (i, &e1) in row.iter().enumerate() {
                 for &e2 in &row[..=i] {
                     let (d1, d2) = (entry_dof[e1 as usize], entry_dof[e2 as usize]);
@@ -194,7 +196,9 @@ impl KktSystem {
         let mut rho = if j_diag > 0.0 { h_diag / j_diag } else { 0.0 };
         self.jac.clear();
         self.jac.extend_from_slice(j_values);
-        for _ in 0..3 {
+        // Without pairs (a projected, positive semi-definite H) one plain attempt.
+        let attempts = if self.pairs.is_empty() { 1 } else { 2 };
+        for _ in 0..attempts {
             self.h_aug.clear();
             self.h_aug.extend_from_slice(h_values);
             for &(p, e1, e2, mult) in &self.pairs {

@@ -1,0 +1,183 @@
+//! LK14 constraint kernels in the engine: the constrained solve meets its residual, the two
+//! KKT methods agree, and kernels are resampled (and re-centred) when a layer's mesh changes.
+
+mod common;
+
+use bevy_ecs::prelude::*;
+use common::*;
+use glam::DVec2;
+use skinsim::coupling::kernels::{moments, Adjusted, Sample};
+use skinsim::model::*;
+use skinsim::scene::load_str;
+use skinsim_systems::Simulation;
+
+/// A shell held by kernels over a kinematic base that is compressed (4 %) in two frames.
+fn held_sheet(kkt: &str, projection: &str) -> String {
+    held_sheet_at(kkt, projection, 0.04)
+}
+
+fn held_sheet_at(kkt: &str, projection: &str, strain: f64) -> String {
+    format!(
+        r#"
+Scene(name: "held", frames: 2, patches: [
+    Patch(name: "skin",
+        solver: (max_iterations: 80, projection: {projection}, kkt: {kkt}, perturbation: Some((amplitude: 0.01, seed: 3))),
+        layers: [
+            Layer(name: "base", kind: Kinematic, mesh: Grid(size: (8.0, 8.0), cells: (20, 23))),
+            Layer(name: "skin", kind: Shell, mesh: Grid(size: (8.0, 8.0), cells: (20, 23), z: 0.15),
+                  material: (young: 4.0, poisson: 0.3, thickness: 0.3), bending: Some((model: Tan))),
+        ],
+        drivers: [Compress(layers: ["base", "skin"], axis: X, keyframes: [(0, 0.0), (2, {strain})])],
+        couplings: [Coupling(upper: "skin", lower: "base", wavelength: Constant(3.0), seed: 1)],
+    ),
+])"#
+    )
+}
+
+fn held(kkt: &str, projection: &str) -> (Simulation, Vec<skinsim_systems::FrameStats>) {
+    let scene = load_str(&held_sheet(kkt, projection), &scene_path("held.ron")).unwrap_or_else(|e| panic!("{e}"));
+    run(&scene)
+}
+
+/// PHYSICS.md 2: every frame converges with the constraint residual below 1e-9 of the patch size.
+#[test]
+fn constrained_frames_converge_with_tiny_constraint_residual() {
+    for projection in ["Clamp", "Adaptive"] {
+        let (_, stats) = held("Ldlt", projection);
+        for s in &stats {
+            let p = &s.patches[0];
+            println!(
+                "{projection}: frame {} iterations {} residual {:.2e} constraints {} violation {:.2e}",
+                s.frame, p.newton_iterations, p.residual, p.constraints, p.constraint_violation
+            );
+            assert!(p.converged, "{projection}: frame {} did not converge", s.frame);
+            assert!(p.constraints > 0);
+            assert!(p.constraint_violation < 1e-9, "violation {:.2e}", p.constraint_violation);
+        }
+    }
+}
+
+/// The sparse LDL^T of the KKT matrix and the Schur complement give the same frames (below the
+/// buckling strain: past it the two may pick different, equally valid wrinkle patterns).
+#[test]
+fn ldlt_and_schur_agree() {
+    let run_with = |kkt| {
+        let text = held_sheet_at(kkt, "Adaptive", 0.004);
+        run(&load_str(&text, &scene_path("held.ron")).unwrap()).0
+    };
+    let (mut a, mut b) = (run_with("Ldlt"), run_with("Schur"));
+    let (pa, pb) = (a.layer_positions("skin", "skin"), b.layer_positions("skin", "skin"));
+    let worst = pa.iter().zip(&pb).map(|(x, y)| (*x - *y).length()).fold(0.0, f64::max);
+    println!("largest difference {worst:.2e} m");
+    assert!(worst < 1e-9, "LDLT and Schur differ by {worst:.2e} m");
+}
+
+/// The constraint stages run only when kernels exist, between BlendShapes and Assemble.
+#[test]
+fn constraint_stages_run_with_kernels() {
+    let scene = load_str(&held_sheet("Ldlt", "Clamp"), &scene_path("held.ron")).unwrap();
+    let mut sim = Simulation::new(&scene);
+    sim.step();
+    let s = sim.step();
+    assert!(s.timing("constraint_resample") > 0.0 && s.timing("constraint_adjust") > 0.0);
+}
+
+/// Weights of every kernel: affine (sum 1) and centred on the kernel's target to 1e-12.
+fn check_weights(sim: &mut Simulation) -> usize {
+    let mut q = sim.world.query::<(&Kernel, &KernelWeights)>();
+    let mut points = sim.world.query::<&MaterialPos>();
+    let mut checked = 0;
+    for (k, w) in q.iter(&sim.world) {
+        for (side, adjusted) in [(&w.upper, w.adjusted[0]), (&w.lower, w.adjusted[1])] {
+            if adjusted != Some(Adjusted::Centred) {
+                continue;
+            }
+            let pts: Vec<DVec2> = side.iter().map(|(v, _)| points.get(&sim.world, *v).unwrap().0).collect();
+            let s = Sample { vertices: (0..pts.len() as u32).collect(), weights: side.iter().map(|x| x.1).collect() };
+            let (sum, centroid) = moments(&pts, &s);
+            assert!((sum - 1.0).abs() < 1e-12, "sum {sum}");
+            assert!((centroid - k.shape.target).length() < 1e-12, "off by {:e}", (centroid - k.shape.target).length());
+            checked += 1;
+        }
+    }
+    checked
+}
+
+/// ARCHITECTURE.md 2: a kernel is resampled when one of its layers' meshes changes. Here the
+/// upper layer is re-triangulated between frames (every other diagonal flipped, interior
+/// material positions jittered) and its epoch bumped, as a remesh would: the weights change,
+/// stay affine and centred, and the next frame converges on the new mesh.
+#[test]
+fn kernels_follow_a_retriangulated_layer() {
+    let scene = load_str(&held_sheet("Ldlt", "Clamp"), &scene_path("held.ron")).unwrap();
+    let mut sim = Simulation::new(&scene);
+    sim.step();
+    assert!(check_weights(&mut sim) > 0);
+    let before: Vec<KernelWeights> = sim.world.query::<&KernelWeights>().iter(&sim.world).cloned().collect();
+
+    let layer = sim.world.query::<(Entity, &Layer)>().iter(&sim.world).find(|(_, l)| l.name == "skin").unwrap().0;
+    let faces: Vec<Entity> = sim.world.get::<LayerFaces>(layer).unwrap().entities().to_vec();
+    let verts: Vec<Entity> = sim.world.get::<LayerVertices>(layer).unwrap().entities().to_vec();
+    // Flip the shared edge of face pairs (a, b, c) + (c, b, d) -> (a, d, c) + (a, b, d).
+    let tris: Vec<[Entity; 3]> = faces.iter().map(|&f| sim.world.get::<FaceVerts>(f).unwrap().0).collect();
+    let mut flipped = 0;
+    let mut new_tris = tris.clone();
+    let mut used = vec![false; tris.len()];
+    for i in 0..tris.len() {
+        if used[i] || flipped >= 40 {
+            continue;
+        }
+        for j in i + 1..tris.len() {
+            if used[j] {
+                continue;
+            }
+            let shared: Vec<Entity> = tris[i].iter().filter(|v| tris[j].contains(v)).copied().collect();
+            if shared.len() != 2 {
+                continue;
+            }
+            let a = *tris[i].iter().find(|v| !shared.contains(v)).unwrap();
+            let d = *tris[j].iter().find(|v| !shared.contains(v)).unwrap();
+            // Keep orientation: in tris[i] the edge runs shared[p] -> shared[q] after a.
+            let k = tris[i].iter().position(|v| *v == a).unwrap();
+            let (b, c) = (tris[i][(k + 1) % 3], tris[i][(k + 2) % 3]);
+            new_tris[i] = [a, b, d];
+            new_tris[j] = [a, d, c];
+            used[i] = true;
+            used[j] = true;
+            flipped += 1;
+            break;
+        }
+    }
+    assert!(flipped > 0);
+    for (f, t) in faces.iter().zip(&new_tris) {
+        sim.world.entity_mut(*f).insert(FaceVerts(*t));
+    }
+    for (i, &v) in verts.iter().enumerate() {
+        let mut m = sim.world.get_mut::<MaterialPos>(v).unwrap();
+        if m.0.x > 0.0 && m.0.x < 8e-3 && m.0.y > 0.0 && m.0.y < 8e-3 {
+            m.0 += DVec2::new(((i * 7919) % 13) as f64 - 6.0, ((i * 104729) % 11) as f64 - 5.0) * 5e-6;
+        }
+    }
+    // Rest shapes follow the new triangulation (what a remesh's PropertyResample does).
+    let positions: Vec<(Entity, glam::DVec3)> =
+        verts.iter().map(|&v| (v, sim.world.get::<RestPos>(v).unwrap().0)).collect();
+    let rest_of = |e: Entity| positions.iter().find(|p| p.0 == e).unwrap().1;
+    let thickness = sim.world.get::<Thickness>(layer).unwrap().0;
+    for (f, t) in faces.iter().zip(&new_tris) {
+        let rest = skinsim::physics::membrane::MembraneRest::from_rest_triangle(
+            t.map(rest_of),
+            thickness,
+            glam::DMat2::IDENTITY,
+        )
+        .unwrap();
+        sim.world.entity_mut(*f).insert(FaceRest(rest));
+    }
+    sim.world.get_mut::<TopologyEpoch>(layer).unwrap().0 += 1;
+    let s = sim.step();
+    let after: Vec<KernelWeights> = sim.world.query::<&KernelWeights>().iter(&sim.world).cloned().collect();
+    let changed = before.iter().zip(&after).filter(|(a, b)| a.upper != b.upper).count();
+    println!("{changed} of {} kernels resampled", after.len());
+    assert!(changed > 0);
+    assert!(check_weights(&mut sim) > 0);
+    assert!(s.patches[0].converged && s.patches[0].constraint_violation < 1e-9);
+}
