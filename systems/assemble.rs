@@ -10,7 +10,7 @@ use skinsim::model::*;
 use skinsim::physics::Lame;
 use skinsim::solve::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 
-type LayerItems<'a> = (
+pub(crate) type LayerItems<'a> = (
     &'a Layer,
     &'a TopologyEpoch,
     Option<&'a Material>,
@@ -22,12 +22,10 @@ type LayerItems<'a> = (
     Option<&'a LayerSprings>,
 );
 
-type KernelItems<'a> = (&'a Kernel, Ref<'a, KernelWeights>);
-
 #[allow(clippy::too_many_arguments)]
 pub fn gather_bodies(
     mut patches: Query<(&PatchLayers, Option<&PatchKernels>, &mut SolverBody)>,
-    kernels: Query<KernelItems>,
+    kernels: Query<crate::kernels::KernelItems>,
     thickness: Query<&Thickness>,
     layers: Query<LayerItems>,
     vertices: Query<(&Position, &Velocity, &Mass, &Prescribed)>,
@@ -48,7 +46,7 @@ pub fn gather_bodies(
             let resampled = pk.entities().iter().any(|&k| kernels.get(k).is_ok_and(|(_, w)| w.is_changed()));
             if rebuilt || resampled {
                 let (items, faces) = (&kernels, &faces);
-                body.constraints = kernel_rows(&body, pk, items, &layers, faces, &thickness);
+                body.constraints = crate::kernels::kernel_rows(&body, pk, items, &layers, faces, &thickness);
                 body.invalidate_pattern(); // the pattern holds the kernels' J^T J couplings
             }
         }
@@ -187,61 +185,6 @@ fn rebuild(
     body.face_count = face_count;
     body.tet_count = tet_count;
     body.invalidate_pattern();
-}
-
-/// Packs the kernels' weights into constraint rows (LK14 eq. 4.1). A lower vertex's normal
-/// offset is the distance between the layers' mid-surfaces, half the sum of their thicknesses
-/// (a kinematic layer is a surface: thickness 0).
-fn kernel_rows(
-    body: &SolverBody,
-    patch_kernels: &PatchKernels,
-    kernels: &Query<KernelItems>,
-    layers: &Query<LayerItems>,
-    faces: &Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
-    thickness: &Query<&Thickness>,
-) -> skinsim::solve::constraints::Constraints {
-    use skinsim::solve::constraints::{Constraints, KernelRows, LowerTerm};
-    let index: HashMap<Entity, u32> = body.vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
-    let half = |l: Entity| 0.5 * thickness.get(l).map_or(0.0, |t| t.0);
-    // Faces around each vertex of every lower layer (packed, as oriented in the layer).
-    let ring_map = |layer: Entity| -> HashMap<u32, Vec<[u32; 3]>> {
-        let mut map: HashMap<u32, Vec<[u32; 3]>> = HashMap::new();
-        if let Ok((.., Some(lf), _, _, _)) = layers.get(layer) {
-            for &f in lf.entities() {
-                if let Ok((fv, ..)) = faces.get(f) {
-                    let tri = fv.0.map(|e| index[&e]);
-                    for &v in &tri {
-                        map.entry(v).or_default().push(tri);
-                    }
-                }
-            }
-        }
-        map
-    };
-    let mut rings: HashMap<Entity, HashMap<u32, Vec<[u32; 3]>>> = HashMap::new();
-    let mut rows = Vec::new();
-    for &k in patch_kernels.entities() {
-        let Ok((kernel, weights)) = kernels.get(k) else { continue };
-        if weights.upper.is_empty() || weights.lower.is_empty() {
-            continue; // a kernel with an empty support on either layer constrains nothing
-        }
-        let offset = half(kernel.upper) + half(kernel.lower);
-        let ring = rings.entry(kernel.lower).or_insert_with(|| ring_map(kernel.lower));
-        let upper = weights.upper.iter().map(|(v, w)| (index[v], *w)).collect();
-        let lower: Vec<LowerTerm> = weights
-            .lower
-            .iter()
-            .map(|(v, w)| {
-                let v = index[v];
-                LowerTerm { v, w: *w, offset, ring: ring.get(&v).cloned().unwrap_or_default() }
-            })
-            .collect();
-        let lower_moves = lower.iter().any(|t| {
-            std::iter::once(t.v).chain(t.ring.iter().flatten().copied()).any(|v| body.fixed[v as usize] != [true; 3])
-        });
-        rows.push(KernelRows { upper, lower, lower_moves });
-    }
-    Constraints::new(rows, &body.x)
 }
 
 /// The layer's Lame parameters times an element's modulus factor (both scale with E).

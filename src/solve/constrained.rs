@@ -12,7 +12,9 @@ use glam::DVec3;
 use super::body::SolverBody;
 use super::eval::{assemble, Assembly};
 use super::kkt::KktSystem;
-use super::newton::{line_search, predictor, FrameOutcome, Inertia};
+use super::newton::{
+    element_filter, line_search, predictor, FrameOutcome, Inertia, ADAPTIVE_SWITCH, FORCE_FLOOR, STALL,
+};
 use super::pattern::{Pattern, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
@@ -20,9 +22,6 @@ use crate::scene::schema::{SolveMode, SolverSpec};
 
 /// Largest constraint violation at convergence, relative to the patch size (PHYSICS.md 2).
 pub const CONSTRAINT_TOLERANCE: f64 = 1e-9;
-const ADAPTIVE_SWITCH: f64 = 1e-3;
-const FORCE_FLOOR: f64 = 1e-6;
-const STALL: usize = 4;
 
 pub(super) fn newton_kkt(
     body: &mut SolverBody,
@@ -53,13 +52,7 @@ pub(super) fn newton_kkt(
     let mut projecting = true;
     let mut history: Vec<f64> = Vec::new();
     let result = loop {
-        let filter = match settings.projection {
-            Projection::None => Filter::Exact,
-            Projection::Clamp => Filter::Clamp,
-            Projection::Abs => Filter::Abs,
-            Projection::Adaptive if !projecting => Filter::Exact,
-            Projection::Adaptive => Filter::Clamp,
-        };
+        let filter = element_filter(settings.projection, projecting);
         let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } =
             assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);

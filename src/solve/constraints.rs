@@ -28,6 +28,39 @@ pub struct KernelRows {
     pub lower_moves: bool,
 }
 
+/// The faces around each vertex of a surface (packed indices, as oriented): what defines the
+/// lower layer's area-weighted vertex normals.
+pub fn vertex_rings(faces: &[[u32; 3]]) -> HashMap<u32, Vec<[u32; 3]>> {
+    let mut map: HashMap<u32, Vec<[u32; 3]>> = HashMap::new();
+    for tri in faces {
+        for &v in tri {
+            map.entry(v).or_default().push(*tri);
+        }
+    }
+    map
+}
+
+impl KernelRows {
+    /// A kernel's rows from its packed weights on both layers; `offset` is the normal offset of
+    /// the lower layer, `fixed` the held coordinates of every packed vertex.
+    pub fn new(
+        upper: Vec<(u32, f64)>,
+        lower: &[(u32, f64)],
+        offset: f64,
+        rings: &HashMap<u32, Vec<[u32; 3]>>,
+        fixed: &[[bool; 3]],
+    ) -> KernelRows {
+        let lower: Vec<LowerTerm> = lower
+            .iter()
+            .map(|&(v, w)| LowerTerm { v, w, offset, ring: rings.get(&v).cloned().unwrap_or_default() })
+            .collect();
+        let lower_moves = lower.iter().any(|t| {
+            std::iter::once(t.v).chain(t.ring.iter().flatten().copied()).any(|v| fixed[v as usize] != [true; 3])
+        });
+        KernelRows { upper, lower, lower_moves }
+    }
+}
+
 /// Every kernel row of a patch, and the Jacobian's sparsity (rows 3 k + a, vertex, coordinate).
 #[derive(Clone, Debug, Default)]
 pub struct Constraints {

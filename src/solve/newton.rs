@@ -16,15 +16,15 @@ use crate::scene::schema::{LinearSolver, SolveMode, SolverSpec};
 const ARMIJO: f64 = 1e-4;
 const MAX_HALVINGS: u32 = 40;
 /// Adaptive projection: below this relative residual the exact Hessian is tried.
-const ADAPTIVE_SWITCH: f64 = 1e-3;
+pub(super) const ADAPTIVE_SWITCH: f64 = 1e-3;
 /// Round-off band of an energy sum, relative to its elements' energy at unit strain.
 const ROUND_OFF: f64 = 1e-13;
 /// Saddles left per frame at most.
 const MAX_ESCAPES: u32 = 4;
 /// Iterations without progress that signal the round-off floor.
-const STALL: usize = 4;
+pub(super) const STALL: usize = 4;
 /// Smallest force scale, relative to the elements' forces at unit strain.
-const FORCE_FLOOR: f64 = 1e-6;
+pub(super) const FORCE_FLOOR: f64 = 1e-6;
 
 /// What happened in one frame's solve.
 #[derive(Clone, Debug, Default)]
@@ -185,13 +185,7 @@ fn newton(
     let mut history: Vec<f64> = Vec::new();
 
     loop {
-        let filter = match settings.projection {
-            Projection::None => Filter::Exact,
-            Projection::Clamp => Filter::Clamp,
-            Projection::Abs => Filter::Abs,
-            Projection::Adaptive if !projecting => Filter::Exact,
-            Projection::Adaptive => Filter::Clamp,
-        };
+        let filter = element_filter(settings.projection, projecting);
         let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } =
             assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
@@ -318,6 +312,18 @@ fn newton(
         }
     }
     Ok(out)
+}
+
+/// The element-Hessian filter of a projection policy; `projecting`: H15's adaptive policy is in
+/// its projected phase.
+pub(super) fn element_filter(projection: Projection, projecting: bool) -> Filter {
+    match projection {
+        Projection::None => Filter::Exact,
+        Projection::Clamp => Filter::Clamp,
+        Projection::Abs => Filter::Abs,
+        Projection::Adaptive if !projecting => Filter::Exact,
+        Projection::Adaptive => Filter::Clamp,
+    }
 }
 
 /// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
