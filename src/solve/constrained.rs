@@ -85,6 +85,7 @@ pub(super) fn newton_kkt(
         if residual < ADAPTIVE_SWITCH {
             projecting = false;
         }
+        tracing::trace!(iteration = out.iterations, residual, violation, energy = phi, ?filter, "constrained Newton");
         history.push(residual);
         let stalled = history.len() > STALL
             && residual <= 1e3 * settings.tolerance
@@ -99,6 +100,7 @@ pub(super) fn newton_kkt(
         let clock = std::time::Instant::now();
         let solved = kkt.step(pattern, &values, &jac, &grad, &c, &mut dx, &mut next_lambda);
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+        tracing::trace!(solved = solved.is_ok(), shift = kkt.shift, "KKT step");
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
         if solved.is_ok() {
             rho = rho.max(2.0 * next_lambda.iter().fold(0.0f64, |a, l| a.max(l.abs())));

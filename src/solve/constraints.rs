@@ -105,19 +105,6 @@ impl Constraints {
         c
     }
 
-    /// The vertices of each kernel's rows (what J^T J couples).
-    pub fn vertex_groups(&self) -> Vec<Vec<u32>> {
-        let mut groups: Vec<Vec<u32>> = vec![Vec::new(); self.kernels.len()];
-        for &(r, v, _) in &self.entries {
-            groups[r as usize / 3].push(v);
-        }
-        for g in &mut groups {
-            g.sort_unstable();
-            g.dedup();
-        }
-        groups
-    }
-
     pub fn rows(&self) -> usize {
         3 * self.kernels.len()
     }

@@ -1,18 +1,29 @@
-//! The constrained Newton system of LK14 eq. 5.1, `[[H, J^T], [J, 0]] [dx; lambda] = [-g; -c]`,
-//! solved two ways with faer (PHYSICS.md 2; ENGINEERING-NOTES: faer's KKT behaviour):
-//! - `Ldlt`: one sparse LDL^T of the whole KKT matrix (AMD ordering) with sign-based dynamic
-//!   regularization (+ on DOF rows, - on multiplier rows) and one step of iterative refinement;
-//! - `Schur`: the sparse Cholesky of H, then the dense Schur complement S = J H^-1 J^T on the
-//!   constraint rows: lambda = S^-1 (c - J H^-1 g), dx = -H^-1 (g + J^T lambda).
+//! The constrained Newton system of LK14 eq. 5.1, `[[H + mu I, J^T], [J, 0]] [dx; lambda] =
+//! [-g; -c]`, solved two ways with faer (PHYSICS.md 2; ENGINEERING-NOTES: faer's KKT behaviour):
+//! - `Ldlt`: one sparse LDL^T of the whole KKT matrix (AMD ordering), the multiplier diagonal
+//!   set to a tiny -delta so that no pivot is exactly zero, then iterative refinement against
+//!   the matrix without delta;
+//! - `Schur`: the sparse Cholesky of H + mu I, then the dense Schur complement
+//!   S = J (H + mu I)^-1 J^T on the constraint rows (one multi-column solve).
 //!
-//! Both check their residual; the constraint rows are scaled by s = sqrt(mean |diag H|) so the
-//! two blocks have comparable pivots.
+//! Inertia correction (as in interior-point codes): a step is a descent direction of the merit
+//! function when the Hessian is positive definite on the null space of J, i.e. when the KKT
+//! matrix has exactly m negative pivots (Sylvester's law of inertia, for any ordering). A
+//! buckled shell's own Hessian is indefinite - the kernels are what hold it - so the exact
+//! Hessian usually passes this test where a plain Cholesky of H would fail. When it does not,
+//! mu grows by factors of 10 from a small fraction of the mean diagonal; a successful mu is
+//! remembered and tried a third smaller next time. Schur needs H + mu I itself positive definite
+//! (the Cholesky succeeding), a stronger condition: measured against Ldlt in the closing note.
+//!
+//! The constraint rows are scaled by s = sqrt(mean |diag H|) so the two blocks have comparable
+//! pivots.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::linalg::solvers::{Llt, Solve};
+use faer::sparse::linalg::cholesky::supernodal::SupernodalLdltRef;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymbolicCholeskyRaw,
+    SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
@@ -31,6 +42,17 @@ pub enum KktMethod {
 
 /// Relative residual above which a KKT solve is refused (after refinement).
 const MAX_RESIDUAL: f64 = 1e-8;
+/// The multiplier diagonal during factorization, relative to the scaled constraint block.
+const MULTIPLIER_DELTA: f64 = 1e-10;
+/// Inertia correction, relative to the mean diagonal of H: below SHIFT_MIN no shift, the first
+/// one tried after none, and the largest.
+const SHIFT_MIN: f64 = 1e-6;
+const SHIFT_FIRST: f64 = 1e-4;
+const SHIFT_MAX: f64 = 1e2;
+/// How much smaller than the last successful shift the next step tries first.
+const SHIFT_DECREASE: f64 = 3.0;
+/// Refinement steps against the matrix without the multiplier delta.
+const REFINEMENTS: usize = 2;
 
 /// The KKT matrix's lower-triangular pattern over [free DOFs; multipliers], and the maps from the
 /// Hessian's and the Jacobian's values into it.
@@ -41,30 +63,25 @@ pub struct KktSystem {
     row_idx: Vec<u32>,
     h_map: Vec<u32>,
     j_map: Vec<u32>,
+    /// Position of each diagonal entry (DOFs, then multipliers) in `values`.
+    diag: Vec<u32>,
     values: Vec<f64>,
     scale: f64,
     method: Solver,
     pub factorizations: u64,
-    /// Per constraint entry: its row and DOF (NONE when fixed).
-    entry_row: Vec<u32>,
-    entry_dof: Vec<u32>,
-    /// J^T J on the Hessian pattern: (position, entry, entry, multiplicity).
-    pairs: Vec<(u32, u32, u32, f64)>,
-    /// The augmented Hessian H + rho J^T J, its rho, and the Jacobian it was built with.
-    h_aug: Vec<f64>,
-    rho: f64,
-    jac: Vec<f64>,
+    /// The inertia-correcting shift of the last successful step (relative to mean diag H).
+    last_shift: f64,
+    /// The shift of the last step (absolute), for the frame report.
+    pub shift: f64,
 }
 
 enum Solver {
-    Ldlt { symbolic: SymbolicCholesky<u32>, l_values: Vec<f64>, signs: Vec<i8>, mem: MemBuffer, par: Par },
-    Schur { chol: CholeskySolver, jt: Vec<Vec<(u32, f64)>>, y: Mat<f64>, llt: Option<Llt<f64>> },
+    Ldlt { symbolic: SymbolicCholesky<u32>, l_values: Vec<f64>, mem: MemBuffer, par: Par },
+    Schur { chol: CholeskySolver, jt: Vec<Vec<(u32, f64)>>, y: Mat<f64>, llt: Option<Llt<f64>>, shifted: Vec<f64> },
 }
 
 impl KktSystem {
-    /// `augment`: whether `step` may add rho J^T J (the pattern must then hold the kernels'
-    /// vertex groups, Pattern::build_with_groups).
-    pub fn build(h: &Pattern, c: &Constraints, method: KktMethod, augment: bool) -> KktSystem {
+    pub fn build(h: &Pattern, c: &Constraints, method: KktMethod) -> KktSystem {
         let (n, m) = (h.n, c.rows());
         // Constraint entries per DOF column: (row n + r, entry).
         let mut by_col: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
@@ -95,7 +112,9 @@ impl KktSystem {
             }
             col_ptr.push(row_idx.len() as u32);
         }
+        let mut diag: Vec<u32> = h.diag.iter().map(|&p| h_map[p as usize]).collect();
         for r in 0..m {
+            diag.push(row_idx.len() as u32);
             row_idx.push((n + r) as u32);
             col_ptr.push(row_idx.len() as u32);
         }
@@ -115,36 +134,17 @@ impl KktSystem {
                     symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
                     symbolic.solve_in_place_scratch::<f64>(1, par),
                 ]);
-                let signs = (0..n + m).map(|i| if i < n { 1 } else { -1 }).collect();
                 let l_values = vec![0.0; symbolic.len_val()];
-                Solver::Ldlt { symbolic, l_values, signs, mem: MemBuffer::new(req), par }
+                Solver::Ldlt { symbolic, l_values, mem: MemBuffer::new(req), par }
             }
             KktMethod::Schur => Solver::Schur {
                 chol: CholeskySolver::analyze(h),
                 jt: vec![Vec::new(); m],
                 y: Mat::zeros(n, m),
                 llt: None,
+                shifted: Vec::new(),
             },
         };
-        let entry_row: Vec<u32> = c.entries.iter().map(|e| e.0).collect();
-        let entry_dof: Vec<u32> = c.entries.iter().map(|&(_, v, k)| h.dof[3 * v as usize + k as usize]).collect();
-        let mut per_row: Vec<Vec<u32>> = vec![Vec::new(); m];
-        for (e, (&r, &d)) in entry_row.iter().zip(&entry_dof).enumerate() {
-            if d != NONE {
-                per_row[r as usize].push(e as u32);
-            }
-        }
-        let mut pairs = Vec::new();
-        for row in per_row.iter().filter(|_| augment) {
-            for (i, &e1) in row.iter().enumerate() {
-                for &e2 in &row[..=i] {
-                    let (d1, d2) = (entry_dof[e1 as usize], entry_dof[e2 as usize]);
-                    // (J^T J)_{d1 d2} sums J_e1 J_e2 over both orders of a pair of entries.
-                    let mult = if e1 != e2 && d1 == d2 { 2.0 } else { 1.0 };
-                    pairs.push((h.position(d1, d2), e1, e2, mult));
-                }
-            }
-        }
         KktSystem {
             n,
             m,
@@ -152,24 +152,19 @@ impl KktSystem {
             row_idx,
             h_map,
             j_map,
+            diag,
             values,
             scale: 1.0,
             method,
             factorizations: 0,
-            entry_row,
-            entry_dof,
-            pairs,
-            h_aug: Vec::new(),
-            rho: 0.0,
-            jac: Vec::new(),
+            last_shift: 0.0,
+            shift: 0.0,
         }
     }
 
-    /// One SQP step: (dx, lambda) from H, J, g and c. H is augmented to H + rho J^T J (and the
-    /// gradient by rho J^T c), which leaves the solution unchanged while J dx = -c holds, and
-    /// makes H positive definite wherever the constrained problem is stable (Finsler's lemma):
-    /// a buckled shell's own Hessian is indefinite, the kernels are what hold it. rho starts at
-    /// mean diag H / mean diag J^T J and grows 100x on each failed attempt.
+    /// One SQP step: (dx, lambda) from H, J, g and c, with the smallest shift mu (of the
+    /// sequence 0 or last/3, then x10) that gives the KKT matrix the inertia of a stable
+    /// constrained problem.
     #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
@@ -181,89 +176,102 @@ impl KktSystem {
         dx: &mut [f64],
         lambda: &mut [f64],
     ) -> Result<(), NotPositiveDefinite> {
-        let mut jtj_diag = vec![0.0; self.n];
-        for &(_, e1, e2, _) in &self.pairs {
-            if e1 == e2 {
-                jtj_diag[self.entry_dof[e1 as usize] as usize] += j_values[e1 as usize].powi(2);
+        let mean_diag = h.diag.iter().map(|&d| h_values[d as usize].abs()).sum::<f64>() / self.n.max(1) as f64;
+        let mut shift = self.last_shift / SHIFT_DECREASE;
+        if shift < SHIFT_MIN {
+            shift = 0.0;
+        }
+        loop {
+            self.load(h, h_values, j_values, mean_diag, shift * mean_diag);
+            match self.factorize(h).and_then(|_| self.solve(g, c, dx, lambda)) {
+                Ok(()) => {
+                    self.last_shift = shift;
+                    self.shift = shift * mean_diag;
+                    return Ok(());
+                }
+                // A wrong inertia, and any numerical trouble of a near-singular matrix, is
+                // cured by a larger shift.
+                Err(_) if shift < SHIFT_MAX => {
+                    shift = if shift == 0.0 { SHIFT_FIRST } else { 10.0 * shift };
+                }
+                Err(_) => {
+                    self.last_shift = 0.0;
+                    return Err(NotPositiveDefinite);
+                }
             }
         }
-        let mean = |v: &mut dyn Iterator<Item = f64>| {
-            let (s, k) = v.fold((0.0, 0usize), |(s, k), x| (s + x.abs(), k + 1));
-            s / k.max(1) as f64
-        };
-        let h_diag = mean(&mut h.diag.iter().map(|&d| h_values[d as usize]));
-        let j_diag = mean(&mut jtj_diag.iter().copied().filter(|v| *v > 0.0));
-        let mut rho = if j_diag > 0.0 { h_diag / j_diag } else { 0.0 };
-        self.jac.clear();
-        self.jac.extend_from_slice(j_values);
-        // Without pairs (a projected, positive semi-definite H) one plain attempt.
-        let attempts = if self.pairs.is_empty() { 1 } else { 2 };
-        for _ in 0..attempts {
-            self.h_aug.clear();
-            self.h_aug.extend_from_slice(h_values);
-            for &(p, e1, e2, mult) in &self.pairs {
-                self.h_aug[p as usize] += rho * mult * j_values[e1 as usize] * j_values[e2 as usize];
-            }
-            self.rho = rho;
-            let h_aug = std::mem::take(&mut self.h_aug);
-            let ok = self.factorize(h, &h_aug, j_values).and_then(|_| self.solve(g, c, dx, lambda));
-            self.h_aug = h_aug;
-            if ok.is_ok() {
-                return Ok(());
-            }
-            rho *= 100.0;
-        }
-        Err(NotPositiveDefinite)
     }
 
-    /// Loads H (values on the Hessian pattern) and J (values aligned with the constraint
-    /// entries) and factorizes.
-    fn factorize(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64]) -> Result<(), NotPositiveDefinite> {
-        let (n, m) = (self.n, self.m);
+    /// Loads H + shift I (values on the Hessian pattern) and the scaled J (values aligned with
+    /// the constraint entries).
+    fn load(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64], mean_diag: f64, shift: f64) {
         self.values.iter_mut().for_each(|v| *v = 0.0);
-        let mean_diag = h.diag.iter().map(|&d| h_values[d as usize].abs()).sum::<f64>() / n.max(1) as f64;
         self.scale = mean_diag.sqrt().max(f64::MIN_POSITIVE);
         for (p, &k) in self.h_map.iter().enumerate() {
             self.values[k as usize] = h_values[p];
+        }
+        for &k in &self.diag[..h.n] {
+            let d = self.values[k as usize].abs();
+            self.values[k as usize] += shift / mean_diag.max(f64::MIN_POSITIVE) * d;
         }
         for (e, &k) in self.j_map.iter().enumerate() {
             if k != NONE {
                 self.values[k as usize] += self.scale * j_values[e];
             }
         }
+    }
+
+    fn factorize(&mut self, h: &Pattern) -> Result<(), NotPositiveDefinite> {
+        let (n, m) = (self.n, self.m);
         self.factorizations += 1;
         match &mut self.method {
-            Solver::Ldlt { symbolic, l_values, signs, mem, par } => {
+            Solver::Ldlt { symbolic, l_values, mem, par } => {
+                for &k in &self.diag[n..] {
+                    self.values[k as usize] = -MULTIPLIER_DELTA;
+                }
                 let sym = SymbolicSparseColMatRef::new_checked(n + m, n + m, &self.col_ptr, None, &self.row_idx);
                 let a = SparseColMatRef::new(sym, &self.values);
-                let regularization = LdltRegularization {
-                    dynamic_regularization_signs: Some(signs),
-                    dynamic_regularization_delta: 1e-10 * mean_diag.max(f64::MIN_POSITIVE),
-                    dynamic_regularization_epsilon: 1e-13 * mean_diag.max(f64::MIN_POSITIVE),
-                };
                 let stack = MemStack::new(mem);
                 let ok = symbolic
-                    .factorize_numeric_ldlt(l_values, a, Side::Lower, regularization, *par, stack, Default::default())
+                    .factorize_numeric_ldlt(
+                        l_values,
+                        a,
+                        Side::Lower,
+                        Default::default(),
+                        *par,
+                        stack,
+                        Default::default(),
+                    )
                     .is_ok();
-                if ok && l_values.iter().all(|v| v.is_finite()) {
-                    Ok(())
-                } else {
-                    Err(NotPositiveDefinite)
+                for &k in &self.diag[n..] {
+                    self.values[k as usize] = 0.0;
                 }
+                if !ok || !l_values.iter().all(|v| v.is_finite()) {
+                    return Err(NotPositiveDefinite);
+                }
+                if negative_pivots(symbolic, l_values) != m {
+                    return Err(NotPositiveDefinite);
+                }
+                Ok(())
             }
-            Solver::Schur { chol, jt, y, llt } => {
-                chol.factorize(h, h_values)?;
-                fill_rows(jt, &self.col_ptr, &self.row_idx, &self.values, n);
-                // Y = H^-1 (s J)^T column by column, then S = (s J) Y.
-                let mut col = vec![0.0; n];
-                for (r, row) in jt.iter().enumerate() {
-                    col.iter_mut().for_each(|v| *v = 0.0);
-                    for &(c, v) in row {
-                        col[c as usize] = v;
-                    }
-                    chol.solve(&mut col);
-                    y.col_mut(r).iter_mut().zip(&col).for_each(|(a, b)| *a = *b);
+            Solver::Schur { chol, jt, y, llt, shifted } => {
+                // H + mu I on the Hessian pattern, read back from the loaded KKT values.
+                shifted.clear();
+                shifted.resize(self.h_map.len(), 0.0);
+                // (h_map is a bijection onto the Hessian part of the KKT pattern.)
+                for (p, &k) in self.h_map.iter().enumerate() {
+                    shifted[p] = self.values[k as usize];
                 }
+                chol.factorize(h, shifted).map_err(|_| NotPositiveDefinite)?;
+                fill_rows(jt, &self.col_ptr, &self.row_idx, &self.values, n);
+                // Y = (H + mu I)^-1 (s J)^T in one multi-column solve, then S = (s J) Y.
+                y.fill(0.0);
+                for (r, row) in jt.iter().enumerate() {
+                    for &(c, v) in row {
+                        y[(c as usize, r)] = v;
+                    }
+                }
+                chol.solve_columns(y.as_mut());
                 let s = Mat::from_fn(m, m, |r, q| jt[r].iter().map(|&(c, v)| v * y[(c as usize, q)]).sum::<f64>());
                 *llt = Some(s.llt(Side::Lower).map_err(|_| NotPositiveDefinite)?);
                 Ok(())
@@ -278,21 +286,16 @@ impl KktSystem {
         let mut b = Vec::with_capacity(n + m);
         b.extend(g.iter().map(|v| -v));
         b.extend(c.iter().map(|v| -s * v));
-        for (e, (&r, &d)) in self.entry_row.iter().zip(&self.entry_dof).enumerate() {
-            if d != NONE && self.rho != 0.0 {
-                b[d as usize] -= self.rho * self.jac[e] * c[r as usize];
-            }
-        }
         let mut z = b.clone();
         self.raw_solve(&mut z)?;
-        // One step of iterative refinement (the regularization perturbs the factor slightly).
-        let mut kz = vec![0.0; n + m];
-        symmetric_product_into(&self.col_ptr, &self.row_idx, &self.values, &z, &mut kz);
-        let mut r: Vec<f64> = b.iter().zip(&kz).map(|(a, k)| a - k).collect();
-        self.raw_solve(&mut r)?;
-        z.iter_mut().zip(&r).for_each(|(a, d)| *a += d);
-        symmetric_product_into(&self.col_ptr, &self.row_idx, &self.values, &z, &mut kz);
-        let res = b.iter().zip(&kz).map(|(a, k)| (a - k) * (a - k)).sum::<f64>().sqrt();
+        let mut r = vec![0.0; n + m];
+        for _ in 0..REFINEMENTS {
+            self.residual(&b, &z, &mut r);
+            self.raw_solve(&mut r)?;
+            z.iter_mut().zip(&r).for_each(|(a, d)| *a += d);
+        }
+        self.residual(&b, &z, &mut r);
+        let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
         let norm = b.iter().map(|a| a * a).sum::<f64>().sqrt();
         if res.is_nan() || res > MAX_RESIDUAL * norm.max(f64::MIN_POSITIVE) {
             return Err(NotPositiveDefinite);
@@ -302,16 +305,22 @@ impl KktSystem {
         Ok(())
     }
 
+    /// r = b - K z with the loaded matrix (no multiplier delta).
+    fn residual(&self, b: &[f64], z: &[f64], r: &mut [f64]) {
+        symmetric_product_into(&self.col_ptr, &self.row_idx, &self.values, z, r);
+        r.iter_mut().zip(b).for_each(|(k, a)| *k = a - *k);
+    }
+
     fn raw_solve(&mut self, z: &mut [f64]) -> Result<(), NotPositiveDefinite> {
         let (n, m) = (self.n, self.m);
         match &mut self.method {
-            Solver::Ldlt { symbolic, l_values, mem, par, .. } => {
+            Solver::Ldlt { symbolic, l_values, mem, par } => {
                 let ldlt = LdltRef::new(symbolic, l_values);
                 let stack = MemStack::new(mem);
                 let mat = MatMut::from_column_major_slice_mut(z, n + m, 1);
                 ldlt.solve_in_place_with_conj(Conj::No, mat, *par, stack);
             }
-            Solver::Schur { chol, jt, y, llt } => {
+            Solver::Schur { chol, jt, y, llt, .. } => {
                 // u = H^-1 b_x;  S lambda = J u - b_c;  x = u - Y lambda.
                 let (bx, bc) = z.split_at_mut(n);
                 chol.solve(bx);
@@ -332,6 +341,31 @@ impl KktSystem {
     }
 }
 
+/// The number of negative entries of D in an LDL^T factor: the KKT matrix's negative inertia.
+fn negative_pivots(symbolic: &SymbolicCholesky<u32>, l_values: &[f64]) -> usize {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
+            (0..s.nrows())
+                .filter(|&j| {
+                    let span = col_ptr[j] as usize..col_ptr[j + 1] as usize;
+                    let at = row_idx[span.clone()].iter().position(|&r| r as usize == j);
+                    at.is_some_and(|p| l_values[span.start + p] < 0.0)
+                })
+                .count()
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let ldlt = SupernodalLdltRef::new(s, l_values);
+            (0..s.n_supernodes())
+                .map(|k| {
+                    let node = ldlt.supernode(k);
+                    node.val().diagonal().column_vector().iter().filter(|d| **d < 0.0).count()
+                })
+                .sum()
+        }
+    }
+}
+
 /// The scaled Jacobian by row (row r -> (DOF column, value)), read from the loaded KKT values.
 fn fill_rows(jt: &mut [Vec<(u32, f64)>], col_ptr: &[u32], row_idx: &[u32], values: &[f64], n: usize) {
     jt.iter_mut().for_each(|r| r.clear());
@@ -342,5 +376,64 @@ fn fill_rows(jt: &mut [Vec<(u32, f64)>], col_ptr: &[u32], row_idx: &[u32], value
                 jt[r - n].push((c as u32, values[p]));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::solve::constraints::KernelRows;
+    use crate::solve::{Elements, SpringElem};
+
+    /// Two vertices joined by a spring (6 DOFs, all coupled), H diagonal with the given entries,
+    /// and one kernel holding vertex 0 in place (rows x0 = 0): the null space of J is vertex 1.
+    fn setup(diag: [f64; 6], method: KktMethod) -> (Pattern, Vec<f64>, Vec<f64>, KktSystem) {
+        let x = [DVec3::ZERO, DVec3::X];
+        let elements = Elements { springs: vec![SpringElem { v: [0, 1], k: 1.0 }], ..Default::default() };
+        let p = Pattern::build(&x, &[[false; 3]; 2], &[], &elements);
+        let mut h = vec![0.0; p.nnz()];
+        for (d, v) in p.diag.iter().zip(diag) {
+            h[*d as usize] = v;
+        }
+        let c = Constraints::new(vec![KernelRows { upper: vec![(0, 1.0)], lower: vec![], lower_moves: false }], &x);
+        let mut jac = Vec::new();
+        c.jacobian(&x, &mut jac);
+        let kkt = KktSystem::build(&p, &c, method);
+        (p, h, jac, kkt)
+    }
+
+    #[test]
+    fn ldlt_takes_the_exact_step_when_only_held_directions_are_negative() {
+        // H is indefinite on vertex 0, which the kernel holds: the constrained problem is stable.
+        let (p, h, jac, mut kkt) = setup([-1.0, -2.0, 1.0, 2.0, 3.0, 4.0], KktMethod::Ldlt);
+        let (g, c) = (vec![1.0; 6], vec![0.5, 0.0, -0.5]);
+        let (mut dx, mut lambda) = (vec![0.0; 6], vec![0.0; 3]);
+        kkt.step(&p, &h, &jac, &g, &c, &mut dx, &mut lambda).unwrap();
+        assert_eq!(kkt.shift, 0.0, "no shift: the reduced Hessian is positive definite");
+        let expect = [-0.5, 0.0, 0.5, -0.5, -1.0 / 3.0, -0.25];
+        for (a, b) in dx.iter().zip(expect) {
+            assert!((a - b).abs() < 1e-12, "{dx:?}");
+        }
+        // Lagrangian stationarity on the held DOFs: H dx + g + lambda = 0.
+        for k in 0..3 {
+            assert!((h[p.diag[k] as usize] * dx[k] + g[k] + lambda[k]).abs() < 1e-9, "{lambda:?}");
+        }
+    }
+
+    #[test]
+    fn a_negative_free_direction_is_shifted_and_schur_needs_a_definite_hessian() {
+        let (p, h, jac, mut kkt) = setup([1.0, 1.0, 1.0, -1.0, 2.0, 2.0], KktMethod::Ldlt);
+        let (g, c) = (vec![1.0; 6], vec![0.0; 3]);
+        let (mut dx, mut lambda) = (vec![0.0; 6], vec![0.0; 3]);
+        kkt.step(&p, &h, &jac, &g, &c, &mut dx, &mut lambda).unwrap();
+        assert!(kkt.shift > 1.0, "the shift makes the free block positive definite: {}", kkt.shift);
+        let slope: f64 = dx.iter().zip(&g).map(|(a, b)| a * b).sum();
+        assert!(slope < 0.0, "a descent direction");
+        // Schur shifts even when only the held directions are negative.
+        let (p, h, jac, mut schur) = setup([-1.0, -2.0, 1.0, 2.0, 3.0, 4.0], KktMethod::Schur);
+        schur.step(&p, &h, &jac, &g, &c, &mut dx, &mut lambda).unwrap();
+        assert!(schur.shift > 2.0, "{}", schur.shift);
     }
 }

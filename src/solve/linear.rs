@@ -85,6 +85,17 @@ impl CholeskySolver {
         llt.solve_in_place_with_conj(Conj::No, mat, self.par, stack);
     }
 
+    /// Solves A X = B in place for every column of B with the last factorization (one blocked
+    /// pass over the factor instead of one per column).
+    pub fn solve_columns(&mut self, rhs: MatMut<'_, f64>) {
+        assert!(self.factored, "solve after a successful factorization");
+        let k = rhs.ncols();
+        let req = self.symbolic.solve_in_place_scratch::<f64>(k, self.par);
+        let mut mem = MemBuffer::new(req);
+        let llt = LltRef::new(&self.symbolic, &self.l_values);
+        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut mem));
+    }
+
     /// Whether the last factorization succeeded (its factor can precondition CG).
     pub fn is_factored(&self) -> bool {
         self.factored

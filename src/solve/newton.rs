@@ -117,10 +117,7 @@ pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Res
     let (pattern, mut chol) = match body.system.take() {
         Some(system) => system,
         None => {
-            // The J^T J couplings only where an exact (indefinite) Hessian may meet the kernels.
-            let exact_possible = matches!(settings.projection, Projection::Adaptive | Projection::None);
-            let groups = if exact_possible { body.constraints.vertex_groups() } else { Vec::new() };
-            let p = Pattern::build_with_groups(&body.x, &body.fixed, &body.tie, &body.elements, &groups);
+            let p = Pattern::build(&body.x, &body.fixed, &body.tie, &body.elements);
             let s = CholeskySolver::analyze(&p);
             (p, s)
         }
@@ -128,10 +125,7 @@ pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Res
     if !body.constraints.is_empty() {
         let mut kkt = match body.kkt.take() {
             Some(k) => k,
-            None => {
-                let augment = matches!(settings.projection, Projection::Adaptive | Projection::None);
-                KktSystem::build(&pattern, &body.constraints, settings.kkt, augment)
-            }
+            None => KktSystem::build(&pattern, &body.constraints, settings.kkt),
         };
         let before = kkt.factorizations;
         let result = super::constrained::newton_kkt(body, &pattern, &mut kkt, settings, dt).map(|mut o| {

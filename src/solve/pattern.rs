@@ -43,18 +43,6 @@ impl Pattern {
         tie: &[(u32, [bool; 3])],
         elements: &Elements,
     ) -> Pattern {
-        Self::build_with_groups(points, fixed, tie, elements, &[])
-    }
-
-    /// As `build`, with every pair of vertices inside each group coupled as well (the J^T J
-    /// term of a kernel constraint's augmented Hessian, solve::kkt).
-    pub fn build_with_groups(
-        points: &[glam::DVec3],
-        fixed: &[[bool; 3]],
-        tie: &[(u32, [bool; 3])],
-        elements: &Elements,
-        groups: &[Vec<u32>],
-    ) -> Pattern {
         let nv = fixed.len();
         let mut dof = vec![NONE; 3 * nv];
         let mut n = 0u32;
@@ -98,7 +86,6 @@ impl Pattern {
         elements.hinges.iter().for_each(|e| link(&e.v));
         elements.tets.iter().for_each(|e| link(&e.v));
         elements.springs.iter().for_each(|e| link(&e.v));
-        groups.iter().for_each(|g| link(g));
         for (v, a) in adj.iter_mut().enumerate() {
             a.push(v as u32); // every free DOF has a diagonal entry
             a.sort_unstable();
