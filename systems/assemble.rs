@@ -26,7 +26,7 @@ pub(crate) type LayerItems<'a> = (
 pub fn gather_bodies(
     mut patches: Query<(&PatchLayers, Option<&PatchKernels>, &mut SolverBody)>,
     kernels: Query<crate::kernels::KernelItems>,
-    thickness: Query<&Thickness>,
+    thickness: Query<(&Thickness, Option<&LayerProperties>)>,
     layers: Query<LayerItems>,
     vertices: Query<(&Position, &Velocity, &Mass, &Prescribed)>,
     ties: Query<&Tied>,

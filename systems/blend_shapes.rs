@@ -1,5 +1,6 @@
 //! BlendShapeUpdate: evaluates the patch's prescribed motions at this frame and writes the
-//! driven coordinates (H15 6.1: compression increments; bending for validation).
+//! driven coordinates (H15 6.1: compression increments; bending for validation; LK14 5.3 blend
+//! shapes).
 
 use bevy_ecs::prelude::*;
 use skinsim::model::*;
@@ -18,11 +19,11 @@ pub fn apply_motions(
             if acting.is_empty() {
                 continue;
             }
-            for &v in verts.entities() {
+            for (i, &v) in verts.entities().iter().enumerate() {
                 let Ok((rest, fixed, mut pos)) = vertices.get_mut(v) else { continue };
                 let mut target = rest.0;
                 for m in &acting {
-                    target = m.apply(target, motion.centre, frame);
+                    target = m.apply(i, target, motion.centre, frame);
                 }
                 let mut p = pos.0;
                 for k in 0..3 {

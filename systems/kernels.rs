@@ -86,21 +86,22 @@ pub(crate) type KernelItems<'a> = (&'a Kernel, Ref<'a, KernelWeights>);
 
 /// Packs the kernels' weights into constraint rows (LK14 eq. 4.1). A lower vertex's normal
 /// offset is the distance between the layers' mid-surfaces, half the sum of their thicknesses
-/// (a kinematic layer is a surface: thickness 0).
+/// (a kinematic layer is a surface: thickness 0), each scaled by its property map at the kernel
+/// centre.
 pub(crate) fn kernel_rows(
     body: &SolverBody,
     patch_kernels: &PatchKernels,
     kernels: &Query<KernelItems>,
     layers: &Query<crate::assemble::LayerItems>,
     faces: &Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
-    thickness: &Query<&Thickness>,
+    thickness: &Query<(&Thickness, Option<&LayerProperties>)>,
 ) -> Constraints {
     let index: HashMap<Entity, u32> = body.vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
     let packed_faces = |layer: Entity| -> Vec<[u32; 3]> {
         let Ok((.., Some(lf), _, _, _)) = layers.get(layer) else { return Vec::new() };
         lf.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|(fv, ..)| fv.0.map(|e| index[&e])).collect()
     };
-    let half = |l: Entity| 0.5 * thickness.get(l).map_or(0.0, |t| t.0);
+    let half = |l: Entity, at: DVec2| thickness.get(l).map_or(0.0, |(t, p)| 0.5 * t.0 * factors_at(p, at).thickness);
     let mut rings: HashMap<Entity, HashMap<u32, Vec<[u32; 3]>>> = HashMap::new();
     let mut rows = Vec::new();
     for &k in patch_kernels.entities() {
@@ -110,7 +111,7 @@ pub(crate) fn kernel_rows(
         }
         let ring = rings.entry(kernel.lower).or_insert_with(|| vertex_rings(&packed_faces(kernel.lower)));
         let pack = |w: &LayerWeights| -> Vec<(u32, f64)> { w.iter().map(|(v, x)| (index[v], *x)).collect() };
-        let offset = half(kernel.upper) + half(kernel.lower);
+        let offset = half(kernel.upper, kernel.shape.centre) + half(kernel.lower, kernel.shape.centre);
         rows.push(KernelRows::new(pack(&weights.upper), &pack(&weights.lower), offset, ring, &body.fixed));
     }
     Constraints::new(rows, &body.x)

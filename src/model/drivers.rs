@@ -4,11 +4,38 @@
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
+/// How a value moves between two keyframes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum Interpolation {
+    #[default]
+    Linear,
+    /// Smoothstep (3t^2 - 2t^3): zero rate at every keyframe, so a weight eases in and out.
+    Smooth,
+}
+
 /// Piecewise-linear keyframes (frame, value); held constant outside their range.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Keyframes(pub Vec<(u32, f64)>);
 
 impl Keyframes {
+    /// The value at `frame` with the given interpolation between keys.
+    pub fn at_with(&self, frame: f64, interpolation: Interpolation) -> f64 {
+        let k = &self.0;
+        let Some(i) = k.iter().position(|&(f, _)| frame < f as f64) else {
+            return k.last().map_or(0.0, |l| l.1);
+        };
+        if i == 0 {
+            return k[0].1;
+        }
+        let ((f0, v0), (f1, v1)) = (k[i - 1], k[i]);
+        let t = (frame - f0 as f64) / (f1 as f64 - f0 as f64);
+        let t = match interpolation {
+            Interpolation::Linear => t,
+            Interpolation::Smooth => t * t * (3.0 - 2.0 * t),
+        };
+        v0 + (v1 - v0) * t
+    }
+
     pub fn at(&self, frame: f64) -> f64 {
         let k = &self.0;
         if k.is_empty() {
@@ -35,6 +62,23 @@ pub enum MotionKind {
     /// Cylinder of curvature kappa (1/m) about an axis through the centre, bending the
     /// in-plane direction orthogonal to it towards +z.
     Bend { axis: usize },
+    /// Blend shapes (LK14 5.3): x_i = X_i + sum_t w_t(frame) d_t,i, one displacement field per
+    /// target over the layer's vertices, in mesh order.
+    Blend(BlendShape),
+}
+
+/// A blend shape's targets: displacements from the base mesh and keyframed weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlendShape {
+    pub targets: Vec<(Vec<DVec3>, Keyframes)>,
+    pub interpolation: Interpolation,
+}
+
+impl BlendShape {
+    /// The weight of each target at `frame`.
+    pub fn weights(&self, frame: f64) -> Vec<f64> {
+        self.targets.iter().map(|(_, k)| k.at_with(frame, self.interpolation)).collect()
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -45,19 +89,23 @@ pub struct Motion {
 }
 
 impl Motion {
-    /// Maps a point (already mapped by earlier motions) at `frame`.
-    pub fn apply(&self, p: DVec3, centre: DVec3, frame: f64) -> DVec3 {
+    /// Maps a point (vertex `index` of its layer, already mapped by earlier motions) at `frame`.
+    pub fn apply(&self, index: usize, p: DVec3, centre: DVec3, frame: f64) -> DVec3 {
         let v = self.keyframes.at(frame);
-        match self.kind {
-            MotionKind::Compress { axis, .. } => {
+        match &self.kind {
+            &MotionKind::Compress { axis, .. } => {
                 let mut q = p;
                 q[axis] = centre[axis] + (1.0 - v) * (p[axis] - centre[axis]);
                 q
             }
-            MotionKind::Bend { axis } => {
+            &MotionKind::Bend { axis } => {
                 // s: arc length along the bent direction; the cylinder axis is `axis`.
                 let bent = if axis == 1 { 0 } else { 1 };
                 crate::physics::prestrain::wrap_on_cylinder(p, centre, v, bent)
+            }
+            MotionKind::Blend(b) => {
+                let w = b.weights(frame);
+                p + b.targets.iter().zip(w).map(|((d, _), w)| w * d[index]).sum::<DVec3>()
             }
         }
     }
@@ -83,3 +131,35 @@ pub struct Capture {
 /// The captures of a patch.
 #[derive(Component, Clone, Debug, Default)]
 pub struct PatchCaptures(pub Vec<Capture>);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keyframes_interpolate_linearly_and_smoothly() {
+        let k = Keyframes(vec![(0, 0.0), (10, 1.0), (20, 0.5)]);
+        assert_eq!(k.at_with(-1.0, Interpolation::Smooth), 0.0);
+        assert_eq!(k.at_with(5.0, Interpolation::Linear), 0.5);
+        assert_eq!(k.at_with(5.0, Interpolation::Smooth), 0.5, "symmetric about the midpoint");
+        assert!((k.at_with(2.0, Interpolation::Smooth) - 0.104).abs() < 1e-12, "eases in");
+        assert_eq!(k.at_with(10.0, Interpolation::Smooth), 1.0);
+        assert_eq!(k.at_with(15.0, Interpolation::Linear), 0.75);
+        assert_eq!(k.at_with(99.0, Interpolation::Linear), 0.5);
+        assert_eq!(k.at(7.0), k.at_with(7.0, Interpolation::Linear));
+    }
+
+    #[test]
+    fn a_blend_adds_weighted_target_displacements() {
+        let b = BlendShape {
+            targets: vec![
+                (vec![DVec3::X, DVec3::Y], Keyframes(vec![(0, 0.0), (10, 1.0)])),
+                (vec![DVec3::Z, DVec3::Z], Keyframes(vec![(0, 0.5)])),
+            ],
+            interpolation: Interpolation::Linear,
+        };
+        let m = Motion { layers: vec![], kind: MotionKind::Blend(b), keyframes: Keyframes(vec![]) };
+        let q = m.apply(1, DVec3::ONE, DVec3::ZERO, 5.0);
+        assert_eq!(q, DVec3::new(1.0, 1.5, 1.5));
+    }
+}

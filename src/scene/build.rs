@@ -67,6 +67,7 @@ pub struct BuiltLayer {
     pub prestrain: Option<BuiltPrestrain>,
     /// (relative amplitude, seed) of the per-element modulus randomization.
     pub randomize: Option<(f64, u64)>,
+    pub properties: Option<crate::model::LayerProperties>,
 }
 
 /// A layer's prestrain, in SI units.
@@ -158,6 +159,12 @@ pub enum BuiltDriver {
         ties: Vec<Vec<(u32, u32)>>,
         seams: Vec<Vec<SeamHinge>>,
     },
+    /// Per target: displacements of the layer's vertices (m) and weight keyframes.
+    BlendShape {
+        layer: usize,
+        targets: Vec<(Vec<DVec3>, Vec<(u32, f64)>)>,
+        interpolation: crate::model::Interpolation,
+    },
     Capture {
         layers: Vec<usize>,
         frame: u32,
@@ -191,13 +198,22 @@ pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
     Builder { file: path.to_path_buf(), dir: path.parent().map(Path::to_path_buf).unwrap_or_default() }.build(scene)
 }
 
-struct Builder {
-    file: PathBuf,
-    dir: PathBuf,
+/// A layer's material as stated or taken from its preset (scene units).
+struct Resolved {
+    model: crate::physics::ConstitutiveModel,
+    young: f64,
+    poisson: f64,
+    density: f64,
+    thickness: Option<f64>,
+}
+
+pub(super) struct Builder {
+    pub(super) file: PathBuf,
+    pub(super) dir: PathBuf,
 }
 
 impl Builder {
-    fn err(&self, field: impl Into<String>, message: impl Into<String>) -> SceneError {
+    pub(super) fn err(&self, field: impl Into<String>, message: impl Into<String>) -> SceneError {
         SceneError::at_field(&self.file, field, message)
     }
 
@@ -366,6 +382,11 @@ impl Builder {
                         .collect::<Result<_, _>>()?;
                     BuiltDriver::Capture { layers: layers_i, frame: *frame, fraction: *fraction, maps }
                 }
+                DriverSpec::BlendShape { layer, targets, interpolation, range } => {
+                    let li = find(format!("{dat}.layer"), layer)?;
+                    let targets = self.blend_targets(&dat, targets, *range, &layers[li].mesh, len, offset)?;
+                    BuiltDriver::BlendShape { layer: li, targets, interpolation: *interpolation }
+                }
                 DriverSpec::Attach { layer, to, stiffness } => {
                     let a = find(format!("{dat}.layer"), layer)?;
                     let b = find(format!("{dat}.to"), to)?;
@@ -452,35 +473,51 @@ impl Builder {
                 crate::coupling::kernels::wavelength_film(upper_h, upper_e / (1.0 - nu_f * nu_f), e / (1.0 - nu * nu))
             }
         };
-        // Refused: a wavelength the patch cannot hold, or supports too small to hold a vertex.
+        // The upper layer's property map: red scales the wavelength; green and blue scale it
+        // through the formula's powers of E and h (eq. 3.1: E^1/6 h^1/2; film: E^1/3 h).
+        let (e_power, h_power) = match &c.wavelength {
+            WavelengthSpec::Constant(_) => (0.0, 0.0),
+            WavelengthSpec::Eq31 { .. } => (1.0 / 6.0, 0.5),
+            WavelengthSpec::Film { .. } => (1.0 / 3.0, 1.0),
+        };
+        let local = |uv: DVec2| {
+            let f = crate::model::factors_at(upper.properties.as_ref(), uv);
+            lambda * f.wavelength * f.young.powf(e_power) * f.thickness.powf(h_power)
+        };
         let (lo, hi) =
             upper_mesh.uv.iter().fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), u| (a.min(*u), b.max(*u)));
+        let (lambda_min, lambda_max) = upper_mesh
+            .uv
+            .iter()
+            .map(|u| local(*u))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), l| (a.min(l), b.max(l)));
+        // Refused: a wavelength the patch cannot hold, or supports too small to hold a vertex.
         let extent = (hi - lo).max_element();
-        if lambda > extent {
+        if lambda_max > extent {
             return Err(self.err(
                 format!("{at}.wavelength"),
-                format!("the wavelength {:.4} m is larger than the patch ({:.4} m)", lambda, extent),
+                format!("the wavelength {:.4} m is larger than the patch ({:.4} m)", lambda_max, extent),
             ));
         }
         for (name, m) in [(&upper.name, upper_mesh), (&lower.name, lower_mesh)] {
             let spacing = mean_edge(m);
-            if 0.5 * lambda < spacing {
+            if 0.5 * lambda_min < spacing {
                 return Err(self.err(
                     format!("{at}.wavelength"),
                     format!(
                         "the kernel radius (half the wavelength, {:.3e} m) is below the mesh spacing of \"{name}\" \
                          ({spacing:.3e} m): refine the mesh or raise the wavelength",
-                        0.5 * lambda
+                        0.5 * lambda_min
                     ),
                 ));
             }
         }
-        let cell = DVec2::new(lambda / 10.0, lambda / 10.0 * 0.75f64.sqrt());
+        let cell = DVec2::new(lambda_min / 10.0, lambda_min / 10.0 * 0.75f64.sqrt());
         let cells = ((hi - lo) / cell).ceil().max(DVec2::ONE);
         let fine =
             crate::mesh::grid(hi - lo, (cells.x as u32, cells.y as u32), crate::mesh::GridPattern::Equilateral, 0.0);
         let points: Vec<DVec2> = fine.uv.iter().map(|u| *u + lo).collect();
-        let wavelength = vec![lambda; points.len()];
+        let wavelength: Vec<f64> = points.iter().map(|p| local(*p)).collect();
         let kernels = crate::coupling::kernels::build_kernels(&points, &fine.faces, &wavelength, c.seed);
         Ok(BuiltCoupling { upper: ui, lower: li, kernels, adjust: c.adjust })
     }
@@ -503,7 +540,8 @@ impl Builder {
             (None, true) => {
                 return Err(self.err(format!("{at}.material"), format!("a {:?} layer needs a material", l.kind)))
             }
-            (Some(m), true) => {
+            (Some(spec), true) => {
+                let m = self.resolve_material(&format!("{at}.material"), spec, len, stress)?;
                 if !(m.young > 0.0 && m.young.is_finite()) {
                     return Err(self.err(
                         format!("{at}.material.young"),
@@ -591,6 +629,15 @@ impl Builder {
             }
             Some(r) => Some((r.amplitude, r.seed)),
         };
+        let properties = match (&l.properties, l.kind) {
+            (None, _) => None,
+            (Some(p), LayerKind::Shell) => Some(self.properties(&format!("{at}.properties"), p, &mesh)?),
+            (Some(_), kind) => {
+                return Err(
+                    self.err(format!("{at}.properties"), format!("property maps are for shells ({kind:?} layer)"))
+                )
+            }
+        };
         Ok(BuiltLayer {
             name: l.name.clone(),
             kind: l.kind,
@@ -602,7 +649,25 @@ impl Builder {
             bending,
             prestrain,
             randomize,
+            properties,
         })
+    }
+
+    /// A material with its preset's values filled in where the scene states none (in the
+    /// scene's units).
+    fn resolve_material(&self, at: &str, m: &MaterialSpec, len: f64, stress: f64) -> Result<Resolved, SceneError> {
+        let preset = m.preset.map(|p| {
+            let (e, nu, h) = p.si();
+            (e / stress, nu, h / len)
+        });
+        let young = m.young.or(preset.map(|p| p.0));
+        let poisson = m.poisson.or(preset.map(|p| p.1));
+        let (Some(young), Some(poisson)) = (young, poisson) else {
+            let missing = if young.is_none() { "young" } else { "poisson" };
+            return Err(self.err(format!("{at}.{missing}"), "state it, or name a preset"));
+        };
+        let thickness = m.thickness.or(preset.map(|p| p.2));
+        Ok(Resolved { model: m.model, young, poisson, density: m.density, thickness })
     }
 
     fn prestrain(

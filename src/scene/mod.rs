@@ -5,8 +5,10 @@
 
 pub mod build;
 pub mod error;
+pub mod properties;
 pub mod schema;
 pub mod spawn;
+pub mod targets;
 
 pub use build::{load, load_str, BuiltScene};
 pub use error::SceneError;

@@ -238,6 +238,54 @@ pub struct LayerSpec {
     /// symmetry of uniform compression (H15 6.2, fig. 6.7b).
     #[serde(default)]
     pub randomize: Option<RandomizeSpec>,
+    /// A property map over the layer's material rectangle (LK14 5.2); shells only.
+    #[serde(default)]
+    pub properties: Option<PropertiesSpec>,
+}
+
+/// An RGB property map and how each channel (0 to 1) scales the layer's reference values:
+/// factor = lo + (hi - lo) x channel. Red: the critical wavelength of couplings whose upper
+/// layer this is; green: Young's modulus; blue: thickness. A channel without a mapping is
+/// ignored. Sampled bilinearly: faces at their centroid, hinges at their edge midpoint, kernels
+/// at their centre.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Properties")]
+pub struct PropertiesSpec {
+    pub map: MapSource,
+    #[serde(default)]
+    pub wavelength: Option<(f64, f64)>,
+    #[serde(default)]
+    pub young: Option<(f64, f64)>,
+    #[serde(default)]
+    pub thickness: Option<(f64, f64)>,
+}
+
+/// Where a property map's colours come from. Colours are (r, g, b) in [0, 1].
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum MapSource {
+    /// An RGB (or RGBA) PNG, path relative to the scene, stretched over the layer's rectangle.
+    Png(String),
+    Constant((f64, f64, f64)),
+    /// Linear from `from` at the min side to `to` at the max side along `axis`.
+    Ramp {
+        axis: Axis,
+        from: (f64, f64, f64),
+        to: (f64, f64, f64),
+    },
+    /// `inner` at the centre to `outer` at half the smaller side and beyond.
+    Radial {
+        inner: (f64, f64, f64),
+        outer: (f64, f64, f64),
+    },
+    /// Seeded value noise: a random colour between `low` and `high` (per channel, one shared
+    /// random number) at the nodes of a `cells` x `cells` lattice, smoothly interpolated.
+    Noise {
+        seed: u64,
+        cells: u32,
+        low: (f64, f64, f64),
+        high: (f64, f64, f64),
+    },
 }
 
 /// Prestrain of a layer (H15 4.3, eq. 4.8: F = dx/dX F0).
@@ -319,15 +367,45 @@ pub enum MeshSpec {
 pub struct MaterialSpec {
     #[serde(default)]
     pub model: ConstitutiveModel,
+    /// A shipped reference material: supplies young, poisson and thickness wherever they are
+    /// not stated.
+    #[serde(default)]
+    pub preset: Option<MaterialPreset>,
     /// Young's modulus (stress units).
-    pub young: f64,
-    pub poisson: f64,
+    #[serde(default)]
+    pub young: Option<f64>,
+    #[serde(default)]
+    pub poisson: Option<f64>,
     /// kg/m^3.
     #[serde(default = "default_density")]
     pub density: f64,
     /// Shell thickness (length units); shells only.
     #[serde(default)]
     pub thickness: Option<f64>,
+}
+
+/// Reference materials (LK14 5.2): the two-layer skin model and the soft substructure under
+/// its blend shape. LK14 states E and h; the Poisson ratio 0.45 (nearly incompressible soft
+/// tissue) is ours.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+pub enum MaterialPreset {
+    /// E = 4 MPa, h = 1.3 mm.
+    Lk14Dermis,
+    /// E = 600 MPa, h = 0.12 mm.
+    Lk14Epidermis,
+    /// E = 0.5 MPa, h = 15 mm (the Eq31 stand-in for a kinematic base).
+    Lk14Substructure,
+}
+
+impl MaterialPreset {
+    /// (Young's modulus in Pa, Poisson ratio, thickness in m).
+    pub fn si(self) -> (f64, f64, f64) {
+        match self {
+            MaterialPreset::Lk14Dermis => (4e6, 0.45, 1.3e-3),
+            MaterialPreset::Lk14Epidermis => (600e6, 0.45, 0.12e-3),
+            MaterialPreset::Lk14Substructure => (0.5e6, 0.45, 15e-3),
+        }
+    }
 }
 
 fn default_density() -> f64 {
@@ -450,6 +528,18 @@ pub enum DriverSpec {
         #[serde(default)]
         axis: Axis,
     },
+    /// Blend shapes (LK14 5.3) on a layer, usually the kinematic base under a LK14 patch:
+    /// x = X + sum over targets of w(frame) (target - X). Moves the layer's prescribed
+    /// coordinates (every coordinate of a kinematic layer).
+    BlendShape {
+        layer: String,
+        targets: Vec<BlendTargetSpec>,
+        #[serde(default)]
+        interpolation: crate::model::Interpolation,
+        /// The declared range of every weight; a keyframe outside it is an error.
+        #[serde(default = "unit_range")]
+        range: (f64, f64),
+    },
     /// Makes wrinkles permanent (H15 4.3): after the solve of `frame`, `fraction` of each
     /// element's current stretch becomes its prestrain (F0 <- F0 U^-fraction) and each hinge's
     /// rest bend moves that fraction towards its current bend. `map` paints the fraction
@@ -462,6 +552,46 @@ pub enum DriverSpec {
         #[serde(default)]
         map: Option<String>,
     },
+}
+
+fn unit_range() -> (f64, f64) {
+    (0.0, 1.0)
+}
+
+/// One blend-shape target and its weight keyframes (frame, weight).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Target")]
+pub struct BlendTargetSpec {
+    pub shape: TargetShape,
+    pub weights: Vec<(u32, f64)>,
+}
+
+/// The full (weight 1) pose of a target, about the centre of the layer's bounding box. The
+/// procedural shapes mimic LK14 fig. 5-1.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum TargetShape {
+    /// Shortens the layer along `axis` by `strain` (0.3: 30 %).
+    Compress {
+        #[serde(default)]
+        axis: Axis,
+        strain: f64,
+    },
+    /// Turns the layer about its normal through the centre by `angle` degrees at the centre,
+    /// falling smoothly to none at `radius` (length units; default half the smaller side): the
+    /// shear of skin twisted over a turning limb.
+    Twist {
+        angle: f64,
+        #[serde(default)]
+        radius: Option<f64>,
+    },
+    /// Draws the skin within `radius` towards the centre (by `squeeze` times the distance at
+    /// the centre, smoothly less outwards) and lifts it by `lift` (length units): a pinch while
+    /// pulling up.
+    Pinch { radius: f64, squeeze: f64, lift: f64 },
+    /// A target mesh (path relative to the scene, length units): the same vertices in the same
+    /// order as the layer's mesh.
+    Obj(String),
 }
 
 fn axis_y() -> Axis {

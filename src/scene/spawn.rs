@@ -92,6 +92,14 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                 kind: MotionKind::Bend { axis: *axis },
                 keyframes: Keyframes(keyframes.clone()),
             }),
+            BuiltDriver::BlendShape { layer, targets, interpolation } => motion.motions.push(Motion {
+                layers: vec![layers[*layer]],
+                kind: MotionKind::Blend(BlendShape {
+                    targets: targets.iter().map(|(d, k)| (d.clone(), Keyframes(k.clone()))).collect(),
+                    interpolation: *interpolation,
+                }),
+                keyframes: Keyframes(Vec::new()),
+            }),
             BuiltDriver::Attach { layer, to, springs } => {
                 let batch: Vec<_> = springs
                     .iter()
@@ -202,6 +210,9 @@ fn spawn_layer(
     if let Some(b) = l.bending {
         e.insert(b);
     }
+    if let Some(p) = &l.properties {
+        e.insert(p.clone());
+    }
     let layer = e.id();
     let rest = l.mesh.rest();
     let uv = l.mesh.material_positions();
@@ -244,14 +255,15 @@ fn spawn_layer(
                 let tri = f.map(|i| m.rest[i as usize]);
                 let centre = f.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 3.0;
                 let f0 = stretch_at(centre).map(|s| prestrain::membrane_f0(tri, s));
-                let rest =
-                    MembraneRest::from_rest_triangle(tri, h, f0.unwrap_or(DMat2::IDENTITY)).expect("checked mesh");
+                let local = factors_at(l.properties.as_ref(), centre); // LK14 5.2: faces at the centroid
+                let rest = MembraneRest::from_rest_triangle(tri, h * local.thickness, f0.unwrap_or(DMat2::IDENTITY))
+                    .expect("checked mesh");
                 e.insert(FaceRest(rest));
                 if let Some(f0) = f0 {
                     e.insert(FacePrestrain(f0));
                 }
-                if let Some(s) = &scale {
-                    e.insert(ModulusScale(s[fi]));
+                if scale.is_some() || l.properties.is_some() {
+                    e.insert(ModulusScale(scale.as_ref().map_or(1.0, |s| s[fi]) * local.young));
                 }
             }
             // A hinge's stiffness follows its faces' moduli (mean of the two).
@@ -277,7 +289,10 @@ fn spawn_layer(
                         let hinge = match (bending, e.is_interior()) {
                             (Some(b), true) => {
                                 let q = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]];
-                                let k_b = b.stiffness * hinge_scale(q);
+                                // LK14 5.2: edges sample the map at their midpoint (D ~ E h^3).
+                                let mid = 0.5 * (uv[e.v[0] as usize] + uv[e.v[1] as usize]);
+                                let local = factors_at(l.properties.as_ref(), mid).bending();
+                                let k_b = b.stiffness * hinge_scale(q) * local;
                                 let x = q.map(|i| m.rest[i as usize]);
                                 Some(Hinge {
                                     opposite: [verts[q[2] as usize], verts[q[3] as usize]],
@@ -330,8 +345,10 @@ fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
             for f in &m.faces {
                 let p = |i: usize| m.rest[f[i] as usize];
                 let a = 0.5 * (p(1) - p(0)).cross(p(2) - p(0)).length();
+                let centre = f.iter().map(|&i| m.uv[i as usize]).sum::<DVec2>() / 3.0;
+                let t = factors_at(l.properties.as_ref(), centre).thickness;
                 for &v in f {
-                    mass[v as usize] += mat.density * h * a / 3.0;
+                    mass[v as usize] += mat.density * h * t * a / 3.0;
                 }
             }
         }
