@@ -120,7 +120,11 @@ pub struct SeamHinge {
     pub image: (u32, u32),
 }
 
+/// A blend-shape target: displacements of the layer's vertices (m) and weight keyframes.
+pub type BuiltTarget = (Vec<DVec3>, Vec<(u32, f64)>);
+
 /// Drivers with layer names resolved to indices and values in SI units.
+
 #[derive(Clone, Debug)]
 pub enum BuiltDriver {
     Pin {
@@ -162,7 +166,7 @@ pub enum BuiltDriver {
     /// Per target: displacements of the layer's vertices (m) and weight keyframes.
     BlendShape {
         layer: usize,
-        targets: Vec<(Vec<DVec3>, Vec<(u32, f64)>)>,
+        targets: Vec<BuiltTarget>,
         interpolation: crate::model::Interpolation,
     },
     Capture {

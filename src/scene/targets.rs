@@ -3,7 +3,7 @@
 
 use glam::{DVec2, DVec3};
 
-use super::build::{Builder, LayerMesh};
+use super::build::{Builder, BuiltTarget, LayerMesh};
 use super::schema::{BlendTargetSpec, TargetShape};
 use super::SceneError;
 use crate::mesh;
@@ -20,7 +20,7 @@ impl Builder {
         mesh: &LayerMesh,
         len: f64,
         offset: DVec3,
-    ) -> Result<Vec<(Vec<DVec3>, Vec<(u32, f64)>)>, SceneError> {
+    ) -> Result<Vec<BuiltTarget>, SceneError> {
         if targets.is_empty() {
             return Err(self.err(format!("{at}.targets"), "a blend shape needs at least one target"));
         }
