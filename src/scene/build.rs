@@ -124,7 +124,6 @@ pub struct SeamHinge {
 pub type BuiltTarget = (Vec<DVec3>, Vec<(u32, f64)>);
 
 /// Drivers with layer names resolved to indices and values in SI units.
-
 #[derive(Clone, Debug)]
 pub enum BuiltDriver {
     Pin {
