@@ -92,6 +92,44 @@ impl Simulation {
         found.into_iter().find(|(_, p)| self.world.get::<Patch>(*p).is_some_and(|p| p.name == patch)).map(|(e, _)| e)
     }
 
+    /// A surface layer's triangles over the vertices they use: (material positions, positions,
+    /// faces indexing those). Empty for a layer without faces.
+    pub fn layer_surface(&mut self, patch: &str, layer: &str) -> (Vec<glam::DVec2>, Vec<glam::DVec3>, Vec<[u32; 3]>) {
+        let Some(l) = self.find_layer(patch, layer) else { return Default::default() };
+        let Some(faces) = self.world.get::<LayerFaces>(l) else { return Default::default() };
+        let tris: Vec<[Entity; 3]> =
+            faces.entities().iter().filter_map(|&f| self.world.get::<FaceVerts>(f)).map(|f| f.0).collect();
+        let mut index = std::collections::HashMap::new();
+        let (mut uv, mut pos) = (Vec::new(), Vec::new());
+        let faces = tris
+            .iter()
+            .map(|t| {
+                t.map(|e| {
+                    *index.entry(e).or_insert_with(|| {
+                        uv.push(self.world.get::<MaterialPos>(e).map_or(glam::DVec2::ZERO, |m| m.0));
+                        pos.push(self.world.get::<Position>(e).map_or(glam::DVec3::ZERO, |p| p.0));
+                        (uv.len() - 1) as u32
+                    })
+                })
+            })
+            .collect();
+        (uv, pos, faces)
+    }
+
+    /// The names of every patch's layers, bottom to top, with their kinds.
+    pub fn layers(&mut self) -> Vec<(String, String, LayerKind)> {
+        let mut q = self.world.query::<(&Layer, &LayerOf)>();
+        let mut out: Vec<(u32, u32, String, String, LayerKind)> = q
+            .iter(&self.world)
+            .filter_map(|(l, of)| {
+                let p = self.world.get::<Patch>(of.0)?;
+                Some((p.index, l.index, p.name.clone(), l.name.clone(), l.kind))
+            })
+            .collect();
+        out.sort_by_key(|x| (x.0, x.1));
+        out.into_iter().map(|x| (x.2, x.3, x.4)).collect()
+    }
+
     /// Positions of a layer's own vertices in spawn order.
     pub fn layer_positions(&mut self, patch: &str, layer: &str) -> Vec<glam::DVec3> {
         let mut q = self.world.query::<(&Layer, &LayerOf, &LayerVertices)>();

@@ -4,6 +4,7 @@ pub mod generate;
 pub mod obj;
 pub mod shading;
 pub mod topology;
+pub mod wrinkle_map;
 
 pub use generate::{grid, tet_slab, GridPattern};
 pub use topology::{check_surface, edges, surface_of_tets, EdgeInfo, MeshError};

@@ -520,7 +520,8 @@ impl Builder {
         let fine =
             crate::mesh::grid(hi - lo, (cells.x as u32, cells.y as u32), crate::mesh::GridPattern::Equilateral, 0.0);
         let points: Vec<DVec2> = fine.uv.iter().map(|u| *u + lo).collect();
-        let wavelength: Vec<f64> = points.iter().map(|p| local(*p)).collect();
+        let layout = crate::coupling::kernels::KERNEL_SCALE;
+        let wavelength: Vec<f64> = points.iter().map(|p| layout * local(*p)).collect();
         let kernels = crate::coupling::kernels::build_kernels(&points, &fine.faces, &wavelength, c.seed);
         Ok(BuiltCoupling { upper: ui, lower: li, kernels, adjust: c.adjust })
     }

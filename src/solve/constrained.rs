@@ -106,6 +106,12 @@ pub(super) fn newton_kkt(
             rho = rho.max(2.0 * next_lambda.iter().fold(0.0f64, |a, l| a.max(l.abs())));
         }
         let c_l1: f64 = c.iter().map(|v| v.abs()).sum();
+        // The step is a descent direction of the constrained problem, but where H is negative
+        // off the null space of J the objective may rise along it: then the penalty must
+        // outweigh that rise for the merit function to fall (with margin 2).
+        if solved.is_ok() && c_l1 > 0.0 && slope - rho * c_l1 >= 0.0 {
+            rho = 2.0 * slope / c_l1;
+        }
         let merit_slope = slope - rho * c_l1;
         if solved.is_err() || merit_slope.is_nan() || merit_slope >= 0.0 {
             if filter == Filter::Exact && settings.projection != Projection::None {

@@ -211,7 +211,9 @@ impl KktSystem {
             self.values[k as usize] = h_values[p];
         }
         for &k in &self.diag[..h.n] {
-            let d = self.values[k as usize].abs();
+            // Scaled like the diagonal where it is large (stiff in-plane DOFs), at least the
+            // mean where it is small (the out-of-plane DOFs buckling makes negative).
+            let d = self.values[k as usize].abs().max(mean_diag);
             self.values[k as usize] += shift / mean_diag.max(f64::MIN_POSITIVE) * d;
         }
         for (e, &k) in self.j_map.iter().enumerate() {
@@ -249,7 +251,9 @@ impl KktSystem {
                 if !ok || !l_values.iter().all(|v| v.is_finite()) {
                     return Err(NotPositiveDefinite);
                 }
-                if negative_pivots(symbolic, l_values) != m {
+                let negative = negative_pivots(symbolic, l_values);
+                tracing::trace!(negative, m, "KKT inertia");
+                if negative != m {
                     return Err(NotPositiveDefinite);
                 }
                 Ok(())
@@ -297,6 +301,7 @@ impl KktSystem {
         self.residual(&b, &z, &mut r);
         let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
         let norm = b.iter().map(|a| a * a).sum::<f64>().sqrt();
+        tracing::trace!(relative_residual = res / norm, "KKT solve");
         if res.is_nan() || res > MAX_RESIDUAL * norm.max(f64::MIN_POSITIVE) {
             return Err(NotPositiveDefinite);
         }

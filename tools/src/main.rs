@@ -11,6 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use skinsim::scene::{self, BuiltScene};
 use skinsim_systems::log::{ObjExport, RerunSink};
 use skinsim_systems::Simulation;
+use skinsim_tools::bake::BakeRequest;
 
 #[derive(Parser)]
 #[command(name = "skinsim", version, about = "Physically based wrinkling of multi-layer skin")]
@@ -36,6 +37,29 @@ enum Command {
         /// The domain is periodic along the axis (whole waves only).
         #[arg(long)]
         periodic: bool,
+    },
+    /// Wrinkle (normal) maps (LK14 5.4): runs the scene and writes an 8-bit RGB PNG per chosen
+    /// frame of a shell layer in material space, blends of the first two, and bake.rrd.
+    Bake {
+        scene: PathBuf,
+        /// Frames to bake, e.g. 5,10.
+        #[arg(long, value_delimiter = ',')]
+        frames: Vec<u32>,
+        /// Blend-shape weights to bake: the frames where the first target's weight comes closest.
+        #[arg(long, value_delimiter = ',')]
+        weights: Vec<f64>,
+        /// Map size in pixels (square).
+        #[arg(long, default_value_t = 1024)]
+        size: u32,
+        /// Output folder (default: out/<scene name>/wrinkle_maps).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The layer to bake (default: the top shell layer of each patch).
+        #[arg(long)]
+        layer: Option<String>,
+        /// Also write blends of the first two maps at these weights, e.g. 0.5.
+        #[arg(long, value_delimiter = ',')]
+        blend: Vec<f64>,
     },
     /// Speed against error (VALIDATION.md F): sweeps the resolution of the wrinkling cases and
     /// writes speed_error.md, .csv and .svg (time per increment against error, log-log).
@@ -107,6 +131,9 @@ fn main() -> ExitCode {
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
         Command::Report { out, quick } => report(&out, quick),
+        Command::Bake { scene, frames, weights, size, out, layer, blend } => {
+            bake(&scene, BakeRequest { frames, weights, size, layer, blends: blend }, out)
+        }
     });
     match result {
         Ok(code) => code,
@@ -282,6 +309,40 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<re
     .map_err(|e| e.to_string())?;
     rec.set_log_time_enabled(false);
     Ok(Some(rec))
+}
+
+fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
+    let scene = match load(path) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    if !(16..=8192).contains(&req.size) {
+        eprintln!("error: --size must be in 16..=8192 (got {})", req.size);
+        return ExitCode::from(2);
+    }
+    if let Err(e) = skinsim_tools::bake::frames_for(&scene, &req) {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.scene.name).join("wrinkle_maps"));
+    let _ = std::fs::create_dir_all(&out);
+    let rec = rerun::RecordingStreamBuilder::new("skinsim-bake").save(out.join("bake.rrd")).ok();
+    let result = skinsim_tools::bake::bake(&scene, &req, &out, rec.as_ref());
+    if let Some(rec) = &rec {
+        let _ = rec.flush_blocking();
+    }
+    match result {
+        Ok(maps) => {
+            for m in &maps {
+                println!("frame {:>5}  {}/{}  {}", m.frame, m.patch, m.layer, m.path.display());
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(1)
+        }
+    }
 }
 
 fn report(out: &Path, quick: bool) -> ExitCode {

@@ -74,12 +74,58 @@ pub fn compression(positions: &[DVec3], material: &[DVec2], axis: usize) -> f64 
 /// Without periodicity, peak positions are refined by parabolic interpolation of the log
 /// magnitude.
 pub fn peaks(p: &Profile, periodic: bool, min_strength: f64) -> Vec<Peak> {
-    if p.s.len() < 4 {
+    match spectrum(p, periodic, None) {
+        Some((mag, length)) => peaks_of(&mag, length, periodic, min_strength),
+        None => Vec::new(),
+    }
+}
+
+/// Spectral peaks of a 2D surface along `axis`: the power spectra of every line of vertices at
+/// one material coordinate across the axis (rows of a grid), summed, so that wrinkles that are
+/// not straight across the patch still count (averaging the heights first would cancel them).
+/// Lines shorter than 8 vertices are skipped.
+pub fn row_peaks(positions: &[DVec3], material: &[DVec2], axis: usize, min_strength: f64) -> Vec<Peak> {
+    let across = 1 - axis;
+    let mut rows: Vec<(f64, DVec3, DVec2)> = positions.iter().zip(material).map(|(p, m)| (m[across], *p, *m)).collect();
+    rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let span = rows.last().map_or(0.0, |l| l.0) - rows.first().map_or(0.0, |f| f.0);
+    let tol = 1e-9 * span.max(1e-300);
+    let mut power: Vec<f64> = Vec::new();
+    let (mut length, mut n_fft) = (0.0, None);
+    let mut i = 0;
+    while i < rows.len() {
+        let start = i;
+        while i < rows.len() && rows[i].0 - rows[start].0 <= tol {
+            i += 1;
+        }
+        if i - start < 8 {
+            continue;
+        }
+        let (pos, mat): (Vec<DVec3>, Vec<DVec2>) = rows[start..i].iter().map(|r| (r.1, r.2)).unzip();
+        let line = profile(&pos, &mat, axis);
+        let n = *n_fft.get_or_insert_with(|| (4 * line.s.len()).next_power_of_two());
+        if let Some((mag, l)) = spectrum(&line, false, Some(n)) {
+            length = l;
+            power.resize(mag.len(), 0.0);
+            power.iter_mut().zip(&mag).for_each(|(p, m)| *p += m * m);
+        }
+    }
+    let mag: Vec<f64> = power.iter().map(|p| p.sqrt()).collect();
+    if mag.len() < 4 {
         return Vec::new();
+    }
+    peaks_of(&mag, length, false, min_strength)
+}
+
+/// The magnitude spectrum of a profile resampled on `n` points (default 4x its samples, to a
+/// power of two), and the length one period of the transform stands for.
+fn spectrum(p: &Profile, periodic: bool, n: Option<usize>) -> Option<(Vec<f64>, f64)> {
+    if p.s.len() < 4 {
+        return None;
     }
     let (s0, s1) = (p.s[0], *p.s.last().unwrap());
     let n_src = if periodic { p.s.len() - 1 } else { p.s.len() };
-    let n = (4 * n_src).next_power_of_two();
+    let n = n.unwrap_or((4 * n_src).next_power_of_two());
     let domain = s1 - s0;
     // Uniform resampling (linear interpolation) over [s0, s1) (periodic) or [s0, s1].
     let step = if periodic { domain / n as f64 } else { domain / (n - 1) as f64 };
@@ -101,11 +147,16 @@ pub fn peaks(p: &Profile, periodic: bool, min_strength: f64) -> Vec<Peak> {
         .collect();
     FftPlanner::new().plan_fft_forward(n).process(&mut buf);
     let mag: Vec<f64> = buf[..n / 2].iter().map(|c| c.norm()).collect();
+    let length = if periodic { domain } else { step * n as f64 };
+    Some((mag, length))
+}
+
+/// Local maxima of a magnitude spectrum (bin k: wavelength length / k), strongest first.
+fn peaks_of(mag: &[f64], length: f64, periodic: bool, min_strength: f64) -> Vec<Peak> {
     let top = mag[1..].iter().fold(0.0f64, |m, v| m.max(*v));
     if top <= 0.0 {
         return Vec::new();
     }
-    let length = if periodic { domain } else { step * n as f64 };
     let mut out: Vec<Peak> = (2..mag.len() - 1)
         .chain(std::iter::once(1).filter(|_| mag[1] > mag[2]))
         .filter(|&k| {
@@ -180,6 +231,24 @@ mod tests {
         assert!(pk.len() >= 2, "{pk:?}");
         assert!((pk[0].wavelength / 0.01 - 1.0).abs() < 0.02, "{pk:?}");
         assert!((pk[1].wavelength / 0.0025 - 1.0).abs() < 0.02, "{pk:?}");
+    }
+
+    #[test]
+    fn row_spectra_find_waves_that_row_averaging_cancels() {
+        // Waves of wavelength 4 along x whose phase turns by half a wave every row: the mean
+        // height at each x is zero, each row alone is a clean sine.
+        let (mut pos, mut mat) = (Vec::new(), Vec::new());
+        for row in 0..6 {
+            for i in 0..=80 {
+                let x = i as f64 * 0.5;
+                let z = (2.0 * std::f64::consts::PI * x / 4.0 + std::f64::consts::PI * row as f64).sin();
+                pos.push(DVec3::new(x, row as f64, z));
+                mat.push(DVec2::new(x, row as f64));
+            }
+        }
+        assert!(amplitude(&profile(&pos, &mat, 0)) < 1e-9, "averaged rows cancel");
+        let pk = row_peaks(&pos, &mat, 0, 0.25);
+        assert!((pk[0].wavelength - 4.0).abs() < 0.04, "{pk:?}");
     }
 
     #[test]

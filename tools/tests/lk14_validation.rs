@@ -1,0 +1,69 @@
+//! VALIDATION.md cases 10 and 11 on the quick LK14 scenes (scenes/lk14/*_quick.ron).
+//! Case 10: one shell held to a compressed blend-shape base by eq. 3.1 kernels wrinkles at the
+//! kernel wavelength, for E x1, E x64 (lambda doubles) and h / 4 (lambda halves). Case 11: a
+//! second, stiffer layer on top adds a second spectral peak near its own kernel wavelength.
+//! Wavelengths come from the summed power spectra of the grid rows along the compression axis
+//! (`wrinkles::row_peaks`). `cargo test --release -p skinsim-cli --test lk14_validation --
+//! --nocapture` prints the figures.
+
+use std::path::Path;
+
+use skinsim::scene;
+use skinsim_systems::Simulation;
+use skinsim_tools::wrinkles::{row_peaks, Peak};
+
+/// Runs a scene; returns the spectral peaks of `layer` at the last frame and whether every
+/// frame converged.
+fn wrinkles(file: &str, layer: &str) -> (Vec<Peak>, bool, f64) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14").join(file);
+    let built = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&built);
+    let mut converged = true;
+    let clock = std::time::Instant::now();
+    for _ in 0..built.scene.frames {
+        let stats = sim.step();
+        assert!(sim.failure().is_none(), "{file}: {:?}", sim.failure());
+        converged &= stats.patches.iter().all(|p| p.converged);
+    }
+    let per_frame = clock.elapsed().as_secs_f64() / built.scene.frames as f64;
+    let (uv, pos): (Vec<_>, Vec<_>) = sim.layer_points("skin", layer).into_iter().unzip();
+    (row_peaks(&pos, &uv, 0, 0.2), converged, per_frame)
+}
+
+#[test]
+fn case_10_kernels_set_the_wavelength() {
+    // (scene, eq. 3.1 wavelength: 4 (h x 15 mm)^1/2 (E / 0.5 MPa)^1/6 in mm)
+    let lambda = |e: f64, h: f64| 4.0 * (h * 15.0f64).sqrt() * (e / 0.5f64).powf(1.0 / 6.0);
+    for (file, expected) in [
+        ("fig3_3_e1_h1_quick.ron", lambda(4.0, 0.075)),
+        ("fig3_3_e64_quick.ron", lambda(256.0, 0.075)),
+        ("fig3_3_h_quarter_quick.ron", lambda(4.0, 0.075 / 4.0)),
+    ] {
+        let (peaks, converged, per_frame) = wrinkles(file, "skin");
+        let measured = 1e3 * peaks[0].wavelength;
+        let error = measured / expected - 1.0;
+        println!(
+            "case 10 {file}: wavelength {measured:.3} mm, kernels {expected:.3} mm, {:+.1} %, {per_frame:.2} s/frame",
+            100.0 * error
+        );
+        assert!(converged, "{file}: every frame converges");
+        assert!(error.abs() < 0.10, "{file}: {measured:.3} mm against {expected:.3} mm");
+    }
+}
+
+#[test]
+fn case_11_two_layers_two_peaks() {
+    let near = |peaks: &[Peak], lambda: f64| peaks.iter().any(|p| (1e3 * p.wavelength / lambda - 1.0).abs() < 0.25);
+    let (one, converged, _) = wrinkles("fig6_3_one_layer_quick.ron", "dermis");
+    println!("case 11 one layer: peaks {:?}", one.iter().map(|p| (1e3 * p.wavelength, p.strength)).collect::<Vec<_>>());
+    assert!(converged);
+    assert!(near(&one[..1], 8.0), "the one-layer peak is lambda_1");
+    assert!(!near(&one, 2.0), "no second scale without a second layer");
+    let (two, converged, per_frame) = wrinkles("fig6_3_two_layers_quick.ron", "epidermis");
+    println!(
+        "case 11 two layers ({per_frame:.2} s/frame): peaks {:?}",
+        two.iter().map(|p| (1e3 * p.wavelength, p.strength)).collect::<Vec<_>>()
+    );
+    assert!(converged);
+    assert!(near(&two, 8.0) && near(&two, 2.0), "peaks near lambda_1 = 8 mm and lambda_2 = 2 mm");
+}
