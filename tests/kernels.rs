@@ -58,7 +58,8 @@ fn constrained_frames_converge_with_tiny_constraint_residual() {
 }
 
 /// The sparse LDL^T of the KKT matrix and the Schur complement give the same frames (below the
-/// buckling strain: past it the two may pick different, equally valid wrinkle patterns).
+/// buckling strain: past it the two may pick different, equally valid wrinkle patterns), to
+/// what the Newton tolerance leaves (1e-6 of the patch size).
 #[test]
 fn ldlt_and_schur_agree() {
     let run_with = |kkt| {
@@ -69,7 +70,7 @@ fn ldlt_and_schur_agree() {
     let (pa, pb) = (a.layer_positions("skin", "skin"), b.layer_positions("skin", "skin"));
     let worst = pa.iter().zip(&pb).map(|(x, y)| (*x - *y).length()).fold(0.0, f64::max);
     println!("largest difference {worst:.2e} m");
-    assert!(worst < 1e-9, "LDLT and Schur differ by {worst:.2e} m");
+    assert!(worst < 1e-8, "LDLT and Schur differ by {worst:.2e} m");
 }
 
 /// The constraint stages run only when kernels exist, between BlendShapes and Assemble.
