@@ -10,10 +10,12 @@
 use glam::DVec3;
 
 use super::body::SolverBody;
+use super::constraints::Constraints;
+use super::eval::energy;
 use super::eval::{assemble, Assembly};
 use super::kkt::KktSystem;
 use super::newton::{
-    element_filter, line_search, predictor, FrameOutcome, Inertia, ADAPTIVE_SWITCH, FORCE_FLOOR, STALL,
+    element_filter, line_search, predictor, step, FrameOutcome, Inertia, ADAPTIVE_SWITCH, ARMIJO, FORCE_FLOOR, STALL,
 };
 use super::pattern::{Pattern, NONE};
 use crate::physics::psd::Filter;
@@ -128,6 +130,12 @@ pub(super) fn newton_kkt(
             parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x)) + rho * violation_l1(x)
         };
         let phi_merit = phi + rho * c_l1;
+        if second_order_correction(body, pattern, kkt, &constraints, &dx, phi_merit, merit_slope, &merit) {
+            out.iterations += 1;
+            tracing::debug!(iteration = out.iterations, residual, alpha = 1.0, "constrained Newton full step");
+            std::mem::swap(&mut lambda, &mut next_lambda);
+            continue;
+        }
         let accepted = line_search(
             body,
             pattern,
@@ -154,4 +162,43 @@ pub(super) fn newton_kkt(
         }
     }
     result.map(|_| out)
+}
+
+/// Second-order correction (the Maratos effect: near the solution a full SQP step can raise the
+/// l1 merit function only because the constraints curve, and backtracking then crawls). When
+/// the full step fails the Armijo test, a correction back onto the constraints - one more solve
+/// with the same factorization - is added and the corrected full step tried; true when it is
+/// taken (body.x moved; also when the full step passes by itself), false with body.x unchanged.
+#[allow(clippy::too_many_arguments)]
+fn second_order_correction(
+    body: &mut SolverBody,
+    pattern: &Pattern,
+    kkt: &mut KktSystem,
+    constraints: &Constraints,
+    dx: &[f64],
+    phi_merit: f64,
+    merit_slope: f64,
+    merit: &dyn Fn(&[f64; 4], &[DVec3]) -> f64,
+) -> bool {
+    let x0 = body.x.clone();
+    step(&mut body.x, &x0, &pattern.dof, dx, 1.0);
+    let full = merit(&energy(&body.elements, &body.x), &body.x);
+    let armijo = |v: f64| v.is_finite() && v <= phi_merit + ARMIJO * merit_slope;
+    if armijo(full) {
+        return true;
+    }
+    if !constraints.is_empty() {
+        let c: Vec<f64> = constraints.values(&body.x).iter().flat_map(|v| v.to_array()).collect();
+        let mut correction = vec![0.0; dx.len()];
+        if kkt.correct(&c, &mut correction).is_ok() {
+            let corrected: Vec<f64> = dx.iter().zip(&correction).map(|(a, b)| a + b).collect();
+            step(&mut body.x, &x0, &pattern.dof, &corrected, 1.0);
+            if armijo(merit(&energy(&body.elements, &body.x), &body.x)) {
+                tracing::trace!("second-order correction taken");
+                return true;
+            }
+        }
+    }
+    body.x.copy_from_slice(&x0);
+    false
 }

@@ -13,7 +13,7 @@ use crate::physics::Projection;
 use crate::scene::schema::{LinearSolver, SolveMode, SolverSpec};
 
 /// Armijo sufficient-decrease constant.
-const ARMIJO: f64 = 1e-4;
+pub(super) const ARMIJO: f64 = 1e-4;
 const MAX_HALVINGS: u32 = 40;
 /// Adaptive projection: below this relative residual the exact Hessian is tried.
 pub(super) const ADAPTIVE_SWITCH: f64 = 1e-3;

@@ -4,4 +4,5 @@ pub mod bake;
 pub mod film;
 pub mod report;
 pub mod skin_section;
+pub mod timing;
 pub mod wrinkles;

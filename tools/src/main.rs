@@ -61,6 +61,16 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         blend: Vec<f64>,
     },
+    /// Timing table (VALIDATION.md G): per-frame stage times of scenes in the columns of LK14
+    /// table 6-1, beside LK14's figures; writes <out>/timing.md.
+    Timing {
+        scenes: Vec<PathBuf>,
+        /// Frames per scene (default: all of each scene's).
+        #[arg(long)]
+        frames: Option<u32>,
+        #[arg(long, default_value = "report")]
+        out: PathBuf,
+    },
     /// Speed against error (VALIDATION.md F): sweeps the resolution of the wrinkling cases and
     /// writes speed_error.md, .csv and .svg (time per increment against error, log-log).
     Report {
@@ -131,6 +141,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
         Command::Report { out, quick } => report(&out, quick),
+        Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
         Command::Bake { scene, frames, weights, size, out, layer, blend } => {
             bake(&scene, BakeRequest { frames, weights, size, layer, blends: blend }, out)
         }
@@ -343,6 +354,28 @@ fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
             ExitCode::from(1)
         }
     }
+}
+
+fn timing(scenes: &[PathBuf], frames: Option<u32>, out: &Path) -> ExitCode {
+    use skinsim_tools::timing;
+    let mut rows = Vec::new();
+    for path in scenes {
+        eprintln!("timing {} ...", path.display());
+        match timing::time_scene(path, frames) {
+            Ok(r) => rows.push(r),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        }
+    }
+    let table = timing::markdown(&rows);
+    print!("{table}");
+    if std::fs::create_dir_all(out).and_then(|_| std::fs::write(out.join("timing.md"), &table)).is_err() {
+        eprintln!("error: cannot write {}", out.join("timing.md").display());
+        return ExitCode::from(1);
+    }
+    ExitCode::SUCCESS
 }
 
 fn report(out: &Path, quick: bool) -> ExitCode {
