@@ -13,10 +13,12 @@ use rand::{Rng, SeedableRng};
 
 /// The kernel geometry's length over the wavelength it imposes. With LK14's geometry at
 /// lambda (centres 2/pi lambda apart, supports of radius lambda / 2) a thin layer held to a
-/// compressed base wrinkles at 0.842 lambda (measured: h / lambda <= 0.0125, 8 and 12 elements
-/// per wavelength, within 0.5 %), so kernels for a critical wavelength lambda are laid out at
-/// lambda / 0.842. Thicker layers wrinkle longer than lambda (their own bending competes): the
-/// closing note of the LK14 issue tabulates measured / lambda against h / lambda.
+/// base compressed in large steps wrinkled at 0.842 lambda (measured: h / lambda <= 0.0125, 8
+/// and 12 elements per wavelength, within 0.5 %), so kernels for a critical wavelength lambda
+/// are laid out at lambda / 0.842. The pattern under kernels is multistable, though: kernels
+/// bound the wavelength to a band (measured 0.9-1.4 lambda) and the loading path and the
+/// imperfection pick within it; thicker layers sit higher in the band (their own bending
+/// competes). The closing note of the LK14 issue has the figures.
 pub const KERNEL_SCALE: f64 = 1.0 / 0.842;
 
 /// LK14 eq. 3.1: lambda = c (h_upper h_lower)^(1/2) (E_upper / E_lower)^(1/6), the constant c

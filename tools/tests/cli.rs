@@ -172,3 +172,26 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     let svg = std::fs::read_to_string(dir.join("speed_error.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("case 7, graded substrate"));
 }
+
+#[test]
+fn bake_writes_normal_maps_blends_and_a_recording() {
+    let dir = scratch("bake");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14/fig6_1_stiffness_quick.ron");
+    let out = skinsim()
+        .args(["bake", scene.to_str().unwrap(), "--frames", "3", "--weights", "1.0", "--size", "64", "--blend", "0.5"])
+        .args(["--out", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for name in ["skin_dermis_00003.png", "skin_dermis_00006.png", "skin_dermis_blend_0.50.png"] {
+        let img = image::open(dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!((img.width(), img.height(), img.color()), (64, 64, image::ColorType::Rgb8), "{name}");
+    }
+    // Wrinkled at full weight: the normals are not all flat.
+    let last = image::open(dir.join("skin_dermis_00006.png")).unwrap().to_rgb8();
+    assert!(last.pixels().any(|p| p.0[2] < 250), "wrinkles tilt the normals");
+    assert!(dir.join("bake.rrd").is_file());
+    // Past the last frame, or weights without a blend shape: bad input, status 2.
+    let bad = skinsim().args(["bake", scene.to_str().unwrap(), "--frames", "99"]).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
+}
