@@ -52,8 +52,10 @@ const SHIFT_FIRST: f64 = 1e-4;
 const SHIFT_MAX: f64 = 1e2;
 /// How much smaller than the last successful shift the next step tries first.
 const SHIFT_DECREASE: f64 = 3.0;
-/// Refinement steps against the matrix without the multiplier delta.
+/// Refinement steps against the matrix without the multiplier delta, at most, and the relative
+/// residual at which they stop.
 const REFINEMENTS: usize = 2;
+const REFINED: f64 = 1e-12;
 
 /// The KKT matrix's lower-triangular pattern over [free DOFs; multipliers], and the maps from the
 /// Hessian's and the Jacobian's values into it.
@@ -198,6 +200,8 @@ impl KktSystem {
                 }
                 // A wrong inertia, and any numerical trouble of a near-singular matrix, is
                 // cured by a larger shift.
+                // (Measured: going back to the last shift after a failed decrease costs more
+                // factorizations than growing x10, on the fig. 6-3 and 6-4 quick scenes.)
                 Err(_) if shift < SHIFT_MAX => {
                     shift = if shift == 0.0 { SHIFT_FIRST } else { 10.0 * shift };
                 }
@@ -308,14 +312,17 @@ impl KktSystem {
         let mut z = b.clone();
         self.raw_solve(&mut z)?;
         let mut r = vec![0.0; n + m];
-        for _ in 0..REFINEMENTS {
+        let norm = b.iter().map(|a| a * a).sum::<f64>().sqrt();
+        let mut res = f64::INFINITY;
+        for refinement in 0..=REFINEMENTS {
             self.residual(&b, &z, &mut r);
+            res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if refinement == REFINEMENTS || res <= REFINED * norm {
+                break;
+            }
             self.raw_solve(&mut r)?;
             z.iter_mut().zip(&r).for_each(|(a, d)| *a += d);
         }
-        self.residual(&b, &z, &mut r);
-        let res = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let norm = b.iter().map(|a| a * a).sum::<f64>().sqrt();
         tracing::trace!(relative_residual = res / norm, "KKT solve");
         if res.is_nan() || res > MAX_RESIDUAL * norm.max(f64::MIN_POSITIVE) {
             return Err(NotPositiveDefinite);
