@@ -30,7 +30,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
 
 use super::constraints::Constraints;
-use super::linear::{symmetric_product_into, CholeskySolver, NotPositiveDefinite, PARALLEL_MIN_DOFS};
+use super::linear::{symmetric_product_into, CholeskySolver, NotPositiveDefinite};
 use super::pattern::{Pattern, NONE};
 
 /// How the KKT system is solved (a scene's `solver.kkt`).
@@ -124,7 +124,10 @@ impl KktSystem {
         let values = vec![0.0; row_idx.len()];
         let method = match method {
             KktMethod::Ldlt => {
-                let par = if n + m >= PARALLEL_MIN_DOFS { Par::rayon(rayon::current_num_threads()) } else { Par::Seq };
+                // Sequential: measured on this 2-core machine, faer's parallel supernodal LDL^T of
+                // the KKT matrix is slower (21k DOFs: 145-155 against 230-264 ms; 33k DOFs:
+                // 216-305 against 425-448 ms per factorization).
+                let par = Par::Seq;
                 let sym = SymbolicSparseColMatRef::new_checked(n + m, n + m, &col_ptr, None, &row_idx);
                 let forward: Vec<u32> = h.order.iter().copied().chain((n..n + m).map(|r| r as u32)).collect();
                 let mut inverse = vec![0u32; n + m];
