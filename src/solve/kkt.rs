@@ -467,3 +467,61 @@ mod tests {
         assert!(schur.shift > 2.0, "{}", schur.shift);
     }
 }
+
+#[cfg(test)]
+mod inertia_tests {
+    use super::*;
+
+    /// The inertia read from faer's factor matches the known spectrum of a shifted 2D Laplacian
+    /// (large enough for the supernodal factorization): eigenvalues 4 - 2 cos(i pi / (k + 1)) -
+    /// 2 cos(j pi / (k + 1)).
+    #[test]
+    fn negative_pivots_count_the_negative_eigenvalues() {
+        let k = 150usize;
+        let n = k * k;
+        let sigma = 0.37;
+        let (mut col_ptr, mut row_idx, mut values) = (vec![0u32], Vec::new(), Vec::new());
+        for c in 0..n {
+            let (i, j) = (c % k, c / k);
+            row_idx.push(c as u32);
+            values.push(4.0 - sigma);
+            if i + 1 < k {
+                row_idx.push((c + 1) as u32);
+                values.push(-1.0);
+            }
+            if j + 1 < k {
+                row_idx.push((c + k) as u32);
+                values.push(-1.0);
+            }
+            col_ptr.push(row_idx.len() as u32);
+        }
+        let expected = (1..=k)
+            .flat_map(|i| (1..=k).map(move |j| (i, j)))
+            .filter(|&(i, j)| {
+                let t = |m: usize| (m as f64 * std::f64::consts::PI / (k + 1) as f64).cos();
+                4.0 - 2.0 * t(i) - 2.0 * t(j) < sigma
+            })
+            .count();
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let symbolic =
+            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
+                .unwrap();
+        assert!(matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)), "the supernodal path is tested");
+        let mut l_values = vec![0.0; symbolic.len_val()];
+        let mut mem = MemBuffer::new(symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()));
+        let a = SparseColMatRef::new(sym, &values);
+        symbolic
+            .factorize_numeric_ldlt(
+                &mut l_values,
+                a,
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
+            .unwrap();
+        assert_eq!(negative_pivots(&symbolic, &l_values), expected);
+        assert!(expected > 10);
+    }
+}
