@@ -9,6 +9,18 @@ pub fn triangle_area(p: &[DVec3], t: &[u32; 3]) -> f64 {
     0.5 * (b - a).cross(c - a).length()
 }
 
+/// Area-weighted unit vertex normals.
+pub fn vertex_normals(pos: &[DVec3], tris: &[[u32; 3]]) -> Vec<DVec3> {
+    let mut normals = vec![DVec3::ZERO; pos.len()];
+    for t in tris {
+        let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
+        let n = (b - a).cross(c - a);
+        t.iter().for_each(|&v| normals[v as usize] += n);
+    }
+    normals.iter_mut().for_each(|n| *n = n.normalize_or_zero());
+    normals
+}
+
 /// Area-weighted unit vertex normals, and per vertex the mean area strain (area / rest area - 1)
 /// of its triangles.
 pub fn normals_and_strain(pos: &[DVec3], tris: &[[u32; 3]], rest_area: &[f64]) -> (Vec<DVec3>, Vec<f64>) {

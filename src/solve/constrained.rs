@@ -15,12 +15,12 @@ use super::eval::energy;
 use super::eval::{assemble, Assembly};
 use super::kkt::KktSystem;
 use super::newton::{
-    element_filter, line_search, predictor, step, FrameOutcome, Inertia, ADAPTIVE_SWITCH, ARMIJO, FORCE_FLOOR, STALL,
+    element_filter, line_search, step, FrameOutcome, FrameStart, ADAPTIVE_SWITCH, ARMIJO, FORCE_FLOOR, STALL,
 };
 use super::pattern::{Pattern, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
-use crate::scene::schema::{SolveMode, SolverSpec};
+use crate::scene::schema::SolverSpec;
 
 /// Largest constraint violation at convergence, relative to the patch size (PHYSICS.md 2).
 pub const CONSTRAINT_TOLERANCE: f64 = 1e-9;
@@ -33,15 +33,8 @@ pub(super) fn newton_kkt(
     dt: f64,
 ) -> Result<FrameOutcome, String> {
     let (n, m) = (pattern.n, body.constraints.rows());
-    body.sync_ties();
-    let dynamic = settings.mode == SolveMode::ImplicitEuler;
-    let x_n = body.x.clone();
-    let x_hat = predictor(body, dynamic, dt);
-    if dynamic {
-        body.x.copy_from_slice(&x_hat);
-    }
-    let mass = if dynamic { body.mass.clone() } else { Vec::new() };
-    let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &mass, inv_h2: 1.0 / (dt * dt) });
+    let start = FrameStart::begin(body, settings.mode, dt);
+    let inertia = start.inertia();
     let constraints = std::mem::take(&mut body.constraints);
     let violation_l1 =
         |x: &[DVec3]| constraints.values(x).iter().map(|c| c.x.abs() + c.y.abs() + c.z.abs()).sum::<f64>();
@@ -156,10 +149,8 @@ pub(super) fn newton_kkt(
         std::mem::swap(&mut lambda, &mut next_lambda);
     };
     body.constraints = constraints;
-    if dynamic && result.is_ok() {
-        for ((v, x), x0) in body.v.iter_mut().zip(&body.x).zip(&x_n) {
-            *v = (*x - *x0) / dt;
-        }
+    if result.is_ok() {
+        start.finish(body);
     }
     result.map(|_| out)
 }

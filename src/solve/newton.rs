@@ -57,7 +57,7 @@ pub struct SolveCounters {
 }
 
 /// The implicit-Euler predictor x_n + h v_n (prescribed coordinates stay); empty when quasistatic.
-pub(super) fn predictor(body: &SolverBody, dynamic: bool, dt: f64) -> Vec<DVec3> {
+fn predictor(body: &SolverBody, dynamic: bool, dt: f64) -> Vec<DVec3> {
     if !dynamic {
         return Vec::new();
     }
@@ -75,6 +75,45 @@ pub(super) fn predictor(body: &SolverBody, dynamic: bool, dt: f64) -> Vec<DVec3>
             p
         })
         .collect()
+}
+
+/// What a frame's solve starts from (both solvers): the positions at its start and, in the
+/// implicit-Euler mode, the predictor and the masses of the inertia term.
+pub(super) struct FrameStart {
+    dynamic: bool,
+    dt: f64,
+    x_n: Vec<DVec3>,
+    x_hat: Vec<DVec3>,
+    mass: Vec<f64>,
+}
+
+impl FrameStart {
+    /// Syncs ties and, when dynamic, moves the body to the predictor.
+    pub(super) fn begin(body: &mut SolverBody, mode: SolveMode, dt: f64) -> FrameStart {
+        body.sync_ties();
+        let dynamic = mode == SolveMode::ImplicitEuler;
+        let x_n = body.x.clone();
+        let x_hat = predictor(body, dynamic, dt);
+        if dynamic {
+            body.x.copy_from_slice(&x_hat);
+        }
+        // (a copy: the line search mutates the body)
+        let mass = if dynamic { body.mass.clone() } else { Vec::new() };
+        FrameStart { dynamic, dt, x_n, x_hat, mass }
+    }
+
+    pub(super) fn inertia(&self) -> Option<Inertia<'_>> {
+        self.dynamic.then(|| Inertia { x_hat: &self.x_hat, mass: &self.mass, inv_h2: 1.0 / (self.dt * self.dt) })
+    }
+
+    /// Implicit Euler: the velocities of the step taken.
+    pub(super) fn finish(&self, body: &mut SolverBody) {
+        if self.dynamic {
+            for ((v, x), x0) in body.v.iter_mut().zip(&body.x).zip(&self.x_n) {
+                *v = (*x - *x0) / self.dt;
+            }
+        }
+    }
 }
 
 /// The incremental potential's inertia term: sum m / (2 h^2) |x - x_hat|^2 (LK14 eq. 5.2).
@@ -153,16 +192,8 @@ fn newton(
     dt: f64,
 ) -> Result<FrameOutcome, String> {
     let n = pattern.n;
-    body.sync_ties();
-    let dynamic = settings.mode == SolveMode::ImplicitEuler;
-    let x_n = body.x.clone();
-    let x_hat = predictor(body, dynamic, dt);
-    if dynamic {
-        body.x.copy_from_slice(&x_hat);
-    }
-    // (a copy: the line search mutates the body)
-    let mass = if dynamic { body.mass.clone() } else { Vec::new() };
-    let inertia = dynamic.then(|| Inertia { x_hat: &x_hat, mass: &mass, inv_h2: 1.0 / (dt * dt) });
+    let start = FrameStart::begin(body, settings.mode, dt);
+    let inertia = start.inertia();
     let total =
         |parts: &[f64; 4], x: &[DVec3]| parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
@@ -214,7 +245,7 @@ fn newton(
             && residual >= 0.5 * history[history.len() - 1 - STALL];
         if n == 0 || residual <= settings.tolerance || stalled {
             out.converged = true;
-            let check = settings.stability_check && !dynamic && n > 0 && out.escapes < MAX_ESCAPES;
+            let check = settings.stability_check && inertia.is_none() && n > 0 && out.escapes < MAX_ESCAPES;
             if check {
                 if filter != Filter::Exact {
                     assemble(&body.elements, pattern, &body.x, Filter::Exact, &mut grad, &mut values);
@@ -300,11 +331,7 @@ fn newton(
             break;
         }
     }
-    if dynamic {
-        for ((v, x), x0) in body.v.iter_mut().zip(&body.x).zip(&x_n) {
-            *v = (*x - *x0) / dt;
-        }
-    }
+    start.finish(body);
     Ok(out)
 }
 

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use image::RgbImage;
-use skinsim::mesh::shading::normals_and_strain;
+use skinsim::mesh::shading::vertex_normals;
 use skinsim::mesh::wrinkle_map::{blend, normal_map};
 use skinsim::model::{Keyframes, LayerKind};
 use skinsim::scene::build::BuiltDriver;
@@ -117,8 +117,7 @@ pub fn bake(
         }
         for (li, (patch, layer)) in layers.iter().enumerate() {
             let (uv, pos, faces) = sim.layer_surface(patch, layer);
-            let rest_area = vec![1.0; faces.len()];
-            let (normals, _) = normals_and_strain(&pos, &faces, &rest_area);
+            let normals = vertex_normals(&pos, &faces);
             let lo = uv.iter().fold(glam::DVec2::INFINITY, |a, p| a.min(*p));
             let hi = uv.iter().fold(glam::DVec2::NEG_INFINITY, |a, p| a.max(*p));
             let img = normal_map(&uv, &faces, &normals, req.size, lo, hi);
