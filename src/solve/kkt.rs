@@ -45,9 +45,9 @@ pub enum KktMethod {
 const MAX_RESIDUAL: f64 = 1e-8;
 /// The multiplier diagonal during factorization, relative to the scaled constraint block.
 const MULTIPLIER_DELTA: f64 = 1e-10;
-/// Inertia correction, relative to the mean diagonal of H: below SHIFT_MIN no shift, the first
-/// one tried after none, and the largest.
-const SHIFT_MIN: f64 = 1e-6;
+/// Inertia correction, relative to the mean diagonal of H: the smallest shift once one was
+/// needed, the smallest against negative curvature, and the largest.
+const SHIFT_MIN: f64 = 1e-9;
 const SHIFT_FIRST: f64 = 1e-4;
 const SHIFT_MAX: f64 = 1e2;
 /// How much smaller than the last successful shift the next step tries first.
@@ -76,6 +76,9 @@ pub struct KktSystem {
     last_shift: f64,
     /// The shift of the last step (absolute), for the frame report.
     pub shift: f64,
+    /// Whether the last failed factorization had more negative pivots than constraints (true
+    /// negative curvature) rather than fewer (round-off of the unpivoted LDL^T).
+    curvature: bool,
 }
 
 enum Solver {
@@ -171,6 +174,7 @@ impl KktSystem {
             factorizations: 0,
             last_shift: 0.0,
             shift: 0.0,
+            curvature: true,
         }
     }
 
@@ -189,10 +193,13 @@ impl KktSystem {
         lambda: &mut [f64],
     ) -> Result<(), NotPositiveDefinite> {
         let mean_diag = h.diag.iter().map(|&d| h_values[d as usize].abs()).sum::<f64>() / self.n.max(1) as f64;
-        let mut shift = self.last_shift / SHIFT_DECREASE;
-        if shift < SHIFT_MIN {
-            shift = 0.0;
-        }
+        // Zero until a shift was first needed, then never below SHIFT_MIN: at a wrinkled state
+        // the unshifted KKT matrix is often singular to round-off, its unpivoted LDL^T then has
+        // fewer than m negative pivots and a failed try at zero costs a factorization per step.
+        let mut shift = match self.last_shift {
+            0.0 => 0.0,
+            last => (last / SHIFT_DECREASE).max(SHIFT_MIN),
+        };
         loop {
             self.load(h, h_values, j_values, mean_diag, shift * mean_diag);
             match self.factorize(h).and_then(|_| self.solve(g, c, dx, lambda)) {
@@ -201,12 +208,15 @@ impl KktSystem {
                     self.shift = shift * mean_diag;
                     return Ok(());
                 }
-                // A wrong inertia, and any numerical trouble of a near-singular matrix, is
-                // cured by a larger shift.
-                // (Measured: going back to the last shift after a failed decrease costs more
-                // factorizations than growing x10, on the fig. 6-3 and 6-4 quick scenes.)
+                // Round-off is cured by a tiny shift; negative curvature needs at least
+                // SHIFT_FIRST (measured on fig. 6-3: climbing x10 from 1e-9 cost 5 more
+                // factorizations at each new wrinkle).
                 Err(_) if shift < SHIFT_MAX => {
-                    shift = if shift == 0.0 { SHIFT_FIRST } else { 10.0 * shift };
+                    shift = match (shift, self.curvature) {
+                        (_, true) => (10.0 * shift).max(SHIFT_FIRST),
+                        (0.0, false) => SHIFT_MIN,
+                        (_, false) => 10.0 * shift,
+                    };
                 }
                 Err(_) => {
                     self.last_shift = 0.0;
@@ -248,6 +258,8 @@ impl KktSystem {
     fn factorize(&mut self, h: &Pattern) -> Result<(), NotPositiveDefinite> {
         let (n, m) = (self.n, self.m);
         self.factorizations += 1;
+        // A failed Cholesky (Schur) means an indefinite H; a failed LDL^T, round-off.
+        self.curvature = matches!(self.method, Solver::Schur { .. });
         match &mut self.method {
             Solver::Ldlt { symbolic, l_values, mem, par } => {
                 for &k in &self.diag[n..] {
@@ -275,6 +287,7 @@ impl KktSystem {
                 }
                 let negative = negative_pivots(symbolic, l_values);
                 tracing::trace!(negative, m, "KKT inertia");
+                self.curvature = negative > m;
                 if negative != m {
                     return Err(NotPositiveDefinite);
                 }
