@@ -8,7 +8,7 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
 use skinsim::physics::Lame;
-use skinsim::solve::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
+use skinsim::solve::{AnchorElem, Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 
 pub(crate) type LayerItems<'a> = (
     &'a Layer,
@@ -20,6 +20,8 @@ pub(crate) type LayerItems<'a> = (
     Option<&'a LayerEdges>,
     Option<&'a LayerTets>,
     Option<&'a LayerSprings>,
+    Option<&'a LayerAnchors>,
+    Has<AnchorBody>,
 );
 
 #[allow(clippy::too_many_arguments)]
@@ -34,12 +36,14 @@ pub fn gather_bodies(
     hinges: Query<(&EdgeVerts, &Hinge)>,
     tets: Query<(&TetVerts, &TetRestShape, Option<&ModulusScale>)>,
     springs: Query<&Spring>,
+    anchors: Query<(&Anchor, &AnchorState)>,
 ) {
     for (patch_layers, patch_kernels, mut body) in &mut patches {
         let key = topology_key(patch_layers, &layers);
         let rebuilt = key != body.topology_key;
         if rebuilt {
             rebuild(&mut body, patch_layers, &layers, &vertices, &ties, &faces, &hinges, &tets, &springs);
+            rebuild_anchors(&mut body, patch_layers, &layers, &anchors);
             body.topology_key = key;
         }
         if let Some(pk) = patch_kernels {
@@ -64,7 +68,43 @@ pub fn gather_bodies(
         if fixed_changed {
             body.invalidate_pattern();
         }
+        // The walk moved the anchors: new spring targets, the same pattern.
+        let nv = body.elements.vertex_anchors.len();
+        for (i, &a) in body.anchors.iter().enumerate() {
+            let target = anchors.get(a).expect("anchor of a live layer").1.position;
+            match body.elements.vertex_anchors.get_mut(i) {
+                Some(e) => e.target = target,
+                None => body.elements.face_anchors[i - nv].target = target,
+            }
+        }
     }
+}
+
+/// Anchor springs in element order (vertex anchors, then face anchors), with their entities.
+fn rebuild_anchors(
+    body: &mut SolverBody,
+    patch_layers: &PatchLayers,
+    layers: &Query<LayerItems>,
+    anchors: &Query<(&Anchor, &AnchorState)>,
+) {
+    let index: HashMap<Entity, u32> = body.vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
+    let (mut at_vertices, mut at_faces) = (Vec::new(), Vec::new());
+    for &l in patch_layers.entities() {
+        let Ok((.., Some(list), _)) = layers.get(l) else { continue };
+        for &a in list.entities() {
+            let Ok((anchor, state)) = anchors.get(a) else { continue };
+            let (k, target) = (anchor.stiffness, state.position);
+            match anchor.skin {
+                SkinPoint::Vertex(v) => at_vertices.push((a, AnchorElem { v: [index[&v]], w: [1.0], k, target })),
+                SkinPoint::Face(f) => {
+                    at_faces.push((a, AnchorElem { v: f.map(|v| index[&v]), w: [1.0 / 3.0; 3], k, target }))
+                }
+            }
+        }
+    }
+    body.anchors = at_vertices.iter().map(|a| a.0).chain(at_faces.iter().map(|a| a.0)).collect();
+    body.elements.vertex_anchors = at_vertices.into_iter().map(|a| a.1).collect();
+    body.elements.face_anchors = at_faces.into_iter().map(|a| a.1).collect();
 }
 
 fn topology_key(patch_layers: &PatchLayers, layers: &Query<LayerItems>) -> u64 {
@@ -75,7 +115,7 @@ fn topology_key(patch_layers: &PatchLayers, layers: &Query<LayerItems>) -> u64 {
         h = h.wrapping_mul(0x100_0000_01b3);
     };
     for &l in patch_layers.entities() {
-        if let Ok((_, epoch, _, _, v, f, e, t, s)) = layers.get(l) {
+        if let Ok((_, epoch, _, _, v, f, e, t, s, a, _)) = layers.get(l) {
             mix(l.to_bits());
             mix(epoch.0);
             mix(v.map_or(0, |x| x.entities().len()) as u64);
@@ -83,6 +123,7 @@ fn topology_key(patch_layers: &PatchLayers, layers: &Query<LayerItems>) -> u64 {
             mix(e.map_or(0, |x| x.entities().len()) as u64);
             mix(t.map_or(0, |x| x.entities().len()) as u64);
             mix(s.map_or(0, |x| x.entities().len()) as u64);
+            mix(a.map_or(0, |x| x.entities().len()) as u64);
         }
     }
     h
@@ -103,7 +144,8 @@ fn rebuild(
     let mut index: HashMap<Entity, u32> = HashMap::new();
     body.vertices.clear();
     for &l in patch_layers.entities() {
-        let Ok((.., Some(verts), _, _, _, _)) = layers.get(l) else { continue };
+        // A body under anchors is not solved for: the walk reads it, the springs hold targets.
+        let Ok((.., Some(verts), _, _, _, _, _, false)) = layers.get(l) else { continue };
         for &v in verts.entities() {
             index.entry(v).or_insert_with(|| {
                 body.vertices.push(v);
@@ -137,7 +179,9 @@ fn rebuild(
     let mut el = Elements::default();
     let (mut face_count, mut tet_count) = (0, 0);
     for &l in patch_layers.entities() {
-        let Ok((layer, _, material, bending, _, lfaces, ledges, ltets, lsprings)) = layers.get(l) else { continue };
+        let Ok((layer, _, material, bending, _, lfaces, ledges, ltets, lsprings, _, false)) = layers.get(l) else {
+            continue;
+        };
         if let Some(lf) = lfaces {
             face_count += lf.entities().len();
             if let (LayerKind::Shell, Some(m)) = (layer.kind, material) {

@@ -98,7 +98,7 @@ pub(crate) fn kernel_rows(
 ) -> Constraints {
     let index: HashMap<Entity, u32> = body.vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
     let packed_faces = |layer: Entity| -> Vec<[u32; 3]> {
-        let Ok((.., Some(lf), _, _, _)) = layers.get(layer) else { return Vec::new() };
+        let Ok((.., Some(lf), _, _, _, _, _)) = layers.get(layer) else { return Vec::new() };
         lf.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|(fv, ..)| fv.0.map(|e| index[&e])).collect()
     };
     let half = |l: Entity, at: DVec2| thickness.get(l).map_or(0.0, |(t, p)| 0.5 * t.0 * factors_at(p, at).thickness);

@@ -1,11 +1,13 @@
 //! skinsim systems: one file per stage of the frame (ARCHITECTURE.md 2) and `schedule.rs`,
 //! which orders them. Systems are thin adapters between the ECS and `skinsim`'s math.
 
+pub mod anchors;
 pub mod assemble;
 pub mod blend_shapes;
 pub mod capture;
 pub mod kernels;
 pub mod log;
+pub mod log_anchors;
 pub mod schedule;
 pub mod simulation;
 pub mod solve;

@@ -1,13 +1,14 @@
 //! The frame: ten chained stages (ARCHITECTURE.md 2). A stage runs only when the scene declares
-//! what it works on: the constraint stages only with kernels. Remesh, PropertyResample and
-//! AnchorWalk have no systems yet (issues 5, 4 and 6).
+//! what it works on: the constraint stages only with kernels, the walk only with anchors.
+//! Remesh and PropertyResample have no systems yet (issue 5).
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
-use skinsim::model::{Kernel, PatchCaptures, PatchMotion, Stage, Timings};
+use skinsim::model::{Anchor, Kernel, PatchCaptures, PatchMotion, Stage, Timings};
 
-use crate::log::{log_frame, wants_logging};
-use crate::{assemble, blend_shapes, capture, kernels, solve, writeback};
+use crate::log::{log_frame, wants_logging, RerunSink};
+use crate::log_anchors::log_anchors;
+use crate::{anchors, assemble, blend_shapes, capture, kernels, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Frame;
@@ -26,7 +27,7 @@ pub fn build_schedule() -> Schedule {
             StageSet(Stage::PropertyResample),
             StageSet(Stage::ConstraintResample).run_if(any_with_component::<Kernel>),
             StageSet(Stage::ConstraintAdjust).run_if(any_with_component::<Kernel>),
-            StageSet(Stage::AnchorWalk),
+            StageSet(Stage::AnchorWalk).run_if(any_with_component::<Anchor>),
             StageSet(Stage::Assemble),
             StageSet(Stage::Solve),
             StageSet(Stage::Writeback),
@@ -37,13 +38,17 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(timed(Stage::BlendShapes, blend_shapes::apply_motions));
     s.add_systems(timed(Stage::ConstraintResample, kernels::resample_kernels));
     s.add_systems(timed(Stage::ConstraintAdjust, kernels::adjust_kernels));
+    s.add_systems(timed(Stage::AnchorWalk, anchors::walk_anchors));
     s.add_systems(timed(Stage::Assemble, assemble::gather_bodies));
     s.add_systems(timed(Stage::Solve, solve::solve_patches));
     s.add_systems(timed(
         Stage::Writeback,
         (writeback::scatter_bodies, capture::capture_prestrain.run_if(any_with_component::<PatchCaptures>)).chain(),
     ));
-    s.add_systems(timed(Stage::Log, log_frame));
+    s.add_systems(timed(
+        Stage::Log,
+        (log_frame, log_anchors.run_if(resource_exists::<RerunSink>).run_if(any_with_component::<Anchor>)).chain(),
+    ));
     s
 }
 

@@ -8,24 +8,24 @@ use skinsim::solve::{solve_frame, SolverBody};
 
 pub fn solve_patches(
     clock: Res<SimClock>,
-    mut patches: Query<(&Patch, &SolverSettings, &mut SolverBody)>,
+    mut patches: Query<(&Patch, &SolverSettings, &mut SolverBody, Option<&AnchorReport>)>,
     mut report: ResMut<FrameReport>,
     mut failure: ResMut<SimFailure>,
 ) {
-    let mut work: Vec<(&Patch, &SolverSettings, Mut<SolverBody>)> = patches.iter_mut().collect();
+    let mut work: Vec<_> = patches.iter_mut().collect();
     work.sort_by_key(|(p, ..)| p.index);
     let outcomes: Vec<_> = work
         .par_iter_mut()
-        .map(|(patch, settings, body)| {
+        .map(|(patch, settings, body, anchors)| {
             let body: &mut SolverBody = body;
             let out = solve_frame(body, &settings.0, clock.dt);
             let counts =
                 (body.vertices.len(), body.face_count, body.tet_count, body.inverted_tets(), body.constraints.rows());
-            (patch.name.clone(), counts, out)
+            (patch.name.clone(), counts, out, anchors.copied())
         })
         .collect();
     report.patches.clear();
-    for (name, (vertices, faces, tets, inverted, constraints), out) in outcomes {
+    for (name, (vertices, faces, tets, inverted, constraints), out, anchors) in outcomes {
         match out {
             Ok(o) => report.patches.push(PatchReport {
                 name,
@@ -49,6 +49,7 @@ pub fn solve_patches(
                 constraints,
                 constraint_violation: o.constraint_violation,
                 inverted,
+                anchors,
             }),
             Err(reason) => {
                 if failure.0.is_none() {
@@ -62,6 +63,7 @@ pub fn solve_patches(
                     converged: false,
                     residual: f64::NAN,
                     energy: f64::NAN,
+                    anchors,
                     ..Default::default()
                 });
             }

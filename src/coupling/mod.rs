@@ -1,3 +1,4 @@
-//! Layer coupling: LK14 constraint kernels (the KCK18 surface walk joins here with issue 6).
+//! Layer coupling: LK14 constraint kernels and the KCK18 surface walk.
 
 pub mod kernels;
+pub mod walk;

@@ -1,5 +1,6 @@
 //! Mesh topology, generators, checks and OBJ input/output. Plain arrays, no ECS.
 
+pub mod bodies;
 pub mod generate;
 pub mod obj;
 pub mod shading;

@@ -65,6 +65,9 @@ pub enum MotionKind {
     /// Blend shapes (LK14 5.3): x_i = X_i + sum_t w_t(frame) d_t,i, one displacement field per
     /// target over the layer's vertices, in mesh order.
     Blend(BlendShape),
+    /// Per frame from `start` (the last frame holds after): displacements from rest (KCK18
+    /// bodies: articulated poses, OBJ sequences).
+    Sequence { frames: Vec<Vec<DVec3>>, start: u32 },
 }
 
 /// A blend shape's targets: displacements from the base mesh and keyframed weights.
@@ -102,6 +105,11 @@ impl Motion {
                 // s: arc length along the bent direction; the cylinder axis is `axis`.
                 let bent = if axis == 1 { 0 } else { 1 };
                 crate::physics::prestrain::wrap_on_cylinder(p, centre, v, bent)
+            }
+            MotionKind::Sequence { frames, start } => {
+                let last = frames.len().saturating_sub(1);
+                let i = ((frame - *start as f64).max(0.0) as usize).min(last);
+                frames.get(i).map_or(p, |d| p + d[index])
             }
             MotionKind::Blend(b) => {
                 let w = b.weights(frame);

@@ -8,9 +8,11 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use crate::physics::{ConstitutiveModel, HingeModel, HingeRest, Lame};
 use crate::scene::schema::SolverSpec;
 
+mod anchors;
 mod drivers;
 mod maps;
 mod resources;
+pub use anchors::*;
 pub use drivers::*;
 pub use maps::*;
 pub use resources::*;

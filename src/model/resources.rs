@@ -117,6 +117,9 @@ pub struct PatchReport {
     pub inverted: usize,
     /// Time inside the solve: element assembly, factorization, line search (ms).
     pub solve_breakdown_ms: crate::solve::SolveCounters,
+    /// KCK18 anchors: what this frame's walk (or projection) did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub anchors: Option<super::AnchorReport>,
 }
 
 /// Per-patch reports of the last solved frame, in patch order.

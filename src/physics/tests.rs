@@ -347,3 +347,28 @@ fn a1_a2_springs() {
     assert!((spring::energy(k, q * a + t, q * b + t) - e0).abs() < 1e-12 * e0);
     assert_eq!(spring::gradient(k, a, a), DVec3::ZERO);
 }
+
+/// A1 for anchor springs at a face barycentre: gradient and Hessian against central differences,
+/// no force when the skin point sits on its anchor.
+#[test]
+fn a1_anchor_springs() {
+    use super::spring::anchor_eval;
+    let (k, w) = (2.5e3, [0.2, 0.3, 0.5]);
+    let x = [DVec3::new(1e-3, -2e-3, 0.5e-3), DVec3::new(-0.4e-3, 1e-3, 2e-3), DVec3::new(0.3e-3, 0.1e-3, -1e-3)];
+    let target = DVec3::new(0.2e-3, 0.4e-3, 0.1e-3);
+    let (_, g, hess) = anchor_eval::<3, 9>(k, &w, &x, target);
+    for p in 0..9 {
+        let h = 1e-7;
+        let (mut xp, mut xm) = (x, x);
+        xp[p / 3][p % 3] += h;
+        xm[p / 3][p % 3] -= h;
+        let (ep, gp, _) = anchor_eval::<3, 9>(k, &w, &xp, target);
+        let (em, gm, _) = anchor_eval::<3, 9>(k, &w, &xm, target);
+        assert!(((ep - em) / (2.0 * h) - g[p]).abs() < 1e-6 * g.norm(), "gradient {p}");
+        for q in 0..9 {
+            assert!(((gp[q] - gm[q]) / (2.0 * h) - hess[(q, p)]).abs() < 1e-6 * hess.norm(), "Hessian {q} {p}");
+        }
+    }
+    let on = w[0] * x[0] + w[1] * x[1] + w[2] * x[2];
+    assert_eq!(anchor_eval::<3, 9>(k, &w, &x, on).1.norm(), 0.0);
+}

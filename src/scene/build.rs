@@ -26,6 +26,7 @@ pub struct BuiltPatch {
     pub layers: Vec<BuiltLayer>,
     pub drivers: Vec<BuiltDriver>,
     pub couplings: Vec<BuiltCoupling>,
+    pub anchors: Option<super::anchors::BuiltAnchors>,
 }
 
 /// A coupling's kernels, clustered at load (SI units).
@@ -167,6 +168,12 @@ pub enum BuiltDriver {
         layer: usize,
         targets: Vec<BuiltTarget>,
         interpolation: crate::model::Interpolation,
+    },
+    /// Per frame from `start`: displacements of the layer's vertices from rest (m).
+    Sequence {
+        layer: usize,
+        frames: Vec<Vec<DVec3>>,
+        start: u32,
     },
     Capture {
         layers: Vec<usize>,
@@ -390,6 +397,17 @@ impl Builder {
                     let targets = self.blend_targets(&dat, targets, *range, &layers[li].mesh, len, offset)?;
                     BuiltDriver::BlendShape { layer: li, targets, interpolation: *interpolation }
                 }
+                DriverSpec::Articulate { layer, pose, weights, interpolation } => {
+                    let li = find(format!("{dat}.layer"), layer)?;
+                    let frames =
+                        self.articulate(&dat, pose, weights, *interpolation, &layers[li], len, scene.frames)?;
+                    BuiltDriver::Sequence { layer: li, frames, start: 0 }
+                }
+                DriverSpec::ObjSequence { layer, files, start } => {
+                    let li = find(format!("{dat}.layer"), layer)?;
+                    let frames = self.obj_sequence(&dat, files, &layers[li], len, offset)?;
+                    BuiltDriver::Sequence { layer: li, frames, start: *start }
+                }
                 DriverSpec::Attach { layer, to, stiffness } => {
                     let a = find(format!("{dat}.layer"), layer)?;
                     let b = find(format!("{dat}.to"), to)?;
@@ -407,7 +425,10 @@ impl Builder {
             .enumerate()
             .map(|(ci, c)| self.coupling(&format!("{at}.couplings[{ci}]"), c, &layers, &index, len, stress))
             .collect::<Result<_, _>>()?;
-        Ok(BuiltPatch { name: p.name.clone(), solver, layers, drivers, couplings })
+        let anchors =
+            p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &layers, &index, len, stress));
+        let anchors = anchors.transpose()?;
+        Ok(BuiltPatch { name: p.name.clone(), solver, layers, drivers, couplings, anchors })
     }
 
     /// Validates a coupling and clusters its kernels (LK14 4.1) on a fine grid of the upper
@@ -875,6 +896,39 @@ impl Builder {
                 m.uv.iter_mut().for_each(|u| *u += base.origin.truncate() - offset.truncate());
                 LayerMesh::Surface(m)
             }
+            MeshSpec::Tube { radius, length, cells } => {
+                self.surface_only(&field, l.kind)?;
+                positive(*radius, "radius")?;
+                positive(*length, "length")?;
+                if cells.0 < 3 || cells.1 == 0 {
+                    return Err(self.err(format!("{field}.cells"), "needs at least 3 cells around and 1 along"));
+                }
+                LayerMesh::Surface(mesh::bodies::tube(radius * len, length * len, cells.0, cells.1))
+            }
+            MeshSpec::Creature { radius, subdivisions } => {
+                self.surface_only(&field, l.kind)?;
+                positive(*radius, "radius")?;
+                if *subdivisions > 7 {
+                    return Err(self.err(format!("{field}.subdivisions"), "at most 7 (327,680 triangles)"));
+                }
+                LayerMesh::Surface(mesh::bodies::creature(radius * len, *subdivisions))
+            }
+            MeshSpec::Offset { layer, distance } => {
+                self.surface_only(&field, l.kind)?;
+                if !distance.is_finite() {
+                    return Err(self.err(format!("{field}.distance"), "must be finite"));
+                }
+                let base = index
+                    .get(layer)
+                    .and_then(|&i| earlier.get(i))
+                    .ok_or_else(|| self.err(format!("{field}.layer"), format!("no earlier layer named \"{layer}\"")))?;
+                let LayerMesh::Surface(m) = &base.mesh else {
+                    return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
+                };
+                let mut m = mesh::bodies::offset(m, distance * len);
+                m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
+                LayerMesh::Surface(m)
+            }
         };
         if shared.is_empty() {
             shared = vec![None; mesh.rest().len()];
@@ -893,6 +947,13 @@ impl Builder {
             }
         }
         Ok((mesh, shared, slab))
+    }
+
+    fn surface_only(&self, field: &str, kind: LayerKind) -> Result<(), SceneError> {
+        if kind == LayerKind::Volume {
+            return Err(self.err(field, "this mesh is a surface: use it for shell or kinematic layers"));
+        }
+        Ok(())
     }
 
     /// Pairs every vertex of `a` with the vertex of `b` at the same rest position in the plane

@@ -3,6 +3,7 @@
 //! `load` reads and validates a scene and builds every mesh, so `skinsim check` catches every
 //! input error without running; `spawn` turns a built scene into entities.
 
+pub mod anchors;
 pub mod build;
 pub mod error;
 pub mod properties;

@@ -101,6 +101,37 @@ pub struct PatchSpec {
     /// LK14 constraint kernels between pairs of layers (chapter 4).
     #[serde(default)]
     pub couplings: Vec<CouplingSpec>,
+    /// KCK18 anchors holding a skin layer to a kinematic body.
+    #[serde(default)]
+    pub anchors: Option<AnchorSpec>,
+}
+
+/// KCK18 sliding skin: zero-length springs from every vertex and face barycentre of the shell
+/// layer `skin` to points on the kinematic layer `body`, bound to the closest body point at
+/// load. Each frame an anchor is offered a* = a0 + slide (x_skin - a0) and moves to it over the
+/// body by `method`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Anchors")]
+pub struct AnchorSpec {
+    pub skin: String,
+    pub body: String,
+    /// Stiffness per unit skin area (stress / length units). A face of area A gives k A / 2 to
+    /// its barycentre anchor and k A / 6 to each of its vertex anchors (all to the vertices
+    /// without face anchors).
+    pub stiffness: f64,
+    #[serde(default)]
+    pub method: crate::model::AnchorMethod,
+    /// 1: the anchor follows the skin's tangential pull fully each frame; 0: it never slides.
+    #[serde(default = "default_one")]
+    pub slide: f64,
+    /// Anchors at face barycentres too (KCK18 section 3: vertex anchors alone let a face
+    /// straddle a crease). Off only to show that.
+    #[serde(default = "default_true")]
+    pub faces: bool,
+    /// The farthest a skin point may start from the body (length units); default 5 % of the
+    /// body's bounding-box diagonal. Farther is an error.
+    #[serde(default)]
+    pub max_distance: Option<f64>,
 }
 
 /// Constraint kernels that hold `upper` to `lower` at frequencies below the critical
@@ -360,6 +391,13 @@ pub enum MeshSpec {
     /// The top surface of an earlier volume layer: a shell (or kinematic) layer whose vertices
     /// are that layer's top vertices (H15: the stratum corneum over the dermis).
     SurfaceOf { layer: String },
+    /// An open tube along x centred on the origin: `cells` = (around, along).
+    Tube { radius: f64, length: f64, cells: (u32, u32) },
+    /// A closed lumpy creature (torso, four legs, head, tail) of 20 x 4^subdivisions triangles.
+    Creature { radius: f64, subdivisions: u32 },
+    /// An earlier surface layer's rest mesh moved `distance` along its vertex normals (a skin
+    /// over a body; its own vertices).
+    Offset { layer: String, distance: f64 },
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
@@ -540,6 +578,24 @@ pub enum DriverSpec {
         #[serde(default = "unit_range")]
         range: (f64, f64),
     },
+    /// Poses a kinematic body (KCK18 scenes): the pose at weight w is evaluated exactly (an
+    /// elbow bent by w x angle), not blended linearly between rest and target.
+    Articulate {
+        layer: String,
+        pose: PoseSpec,
+        weights: Vec<(u32, f64)>,
+        #[serde(default)]
+        interpolation: crate::model::Interpolation,
+    },
+    /// An OBJ sequence (paths relative to the scene, length units): frame `start + i` takes the
+    /// positions of `files[i]`, the last file holds after; the same vertex count and order as
+    /// the layer's mesh.
+    ObjSequence {
+        layer: String,
+        files: Vec<String>,
+        #[serde(default)]
+        start: u32,
+    },
     /// Makes wrinkles permanent (H15 4.3): after the solve of `frame`, `fraction` of each
     /// element's current stretch becomes its prestrain (F0 <- F0 U^-fraction) and each hinge's
     /// rest bend moves that fraction towards its current bend. `map` paints the fraction
@@ -552,6 +608,18 @@ pub enum DriverSpec {
         #[serde(default)]
         map: Option<String>,
     },
+}
+
+/// A procedural body pose (about the centre of the layer's bounding box; angles in degrees).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum PoseSpec {
+    /// A tube along x bends upwards from its centre along an arc of `bend_radius` (length
+    /// units); below the tube radius the inside of the elbow pinches and then folds through.
+    Elbow { angle: f64, bend_radius: f64 },
+    /// The part beyond the centre (x) folds upwards about a line along y: at 180 degrees the
+    /// crease closes to zero width, past it the halves pass through each other.
+    Fold { angle: f64 },
 }
 
 fn unit_range() -> (f64, f64) {

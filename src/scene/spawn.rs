@@ -100,6 +100,11 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                 }),
                 keyframes: Keyframes(Vec::new()),
             }),
+            BuiltDriver::Sequence { layer, frames, start } => motion.motions.push(Motion {
+                layers: vec![layers[*layer]],
+                kind: MotionKind::Sequence { frames: frames.clone(), start: *start },
+                keyframes: Keyframes(Vec::new()),
+            }),
             BuiltDriver::Attach { layer, to, springs } => {
                 let batch: Vec<_> = springs
                     .iter()
@@ -179,6 +184,10 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
             .collect();
         world.spawn_batch(batch);
     }
+    if let Some(a) = &p.anchors {
+        spawn_anchors(world, p, a, &layers, &layer_vertices);
+        world.entity_mut(patch).insert(AnchorReport::default());
+    }
     if !motion.motions.is_empty() {
         world.entity_mut(patch).insert(motion);
     }
@@ -187,6 +196,39 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     }
     world.entity_mut(patch).insert(crate::solve::SolverBody { topology_key: u64::MAX, ..Default::default() });
     patch
+}
+
+/// KCK18: the body's walking surface on the body layer, the method on the skin layer, and one
+/// anchor entity per skin vertex and face barycentre.
+fn spawn_anchors(
+    world: &mut World,
+    p: &BuiltPatch,
+    a: &super::anchors::BuiltAnchors,
+    layers: &[Entity],
+    layer_vertices: &[Vec<Entity>],
+) {
+    let rest = p.layers[a.body].mesh.rest().to_vec();
+    let state = |point| AnchorState { position: a.surface.position(&rest, point), ..Default::default() };
+    let skin = layers[a.skin];
+    let verts = &layer_vertices[a.skin];
+    let mut batch: Vec<_> = a
+        .vertex
+        .iter()
+        .map(|&(v, body, stiffness)| {
+            let anchor = Anchor { skin: SkinPoint::Vertex(verts[v as usize]), body, stiffness };
+            (anchor, state(body), AnchorOf(skin))
+        })
+        .collect();
+    if let LayerMesh::Surface(m) = &p.layers[a.skin].mesh {
+        batch.extend(a.face.iter().map(|&(f, body, stiffness)| {
+            let face = m.faces[f as usize].map(|i| verts[i as usize]);
+            (Anchor { skin: SkinPoint::Face(face), body, stiffness }, state(body), AnchorOf(skin))
+        }));
+    }
+    world.spawn_batch(batch);
+    let vertex_faces = a.surface.vertex_faces(rest.len());
+    world.entity_mut(layers[a.body]).insert(AnchorBody { surface: a.surface.clone(), rest, vertex_faces });
+    world.entity_mut(skin).insert(Anchoring { body: layers[a.body], method: a.method, slide: a.slide });
 }
 
 /// Spawns a layer and its own vertices; `owners[v]` is the entity of a vertex shared with an

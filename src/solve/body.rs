@@ -59,12 +59,25 @@ pub struct SpringElem {
     pub k: f64,
 }
 
+/// A KCK18 anchor spring from the skin point sum_i w_i x[v_i] to `target` on the body (fixed
+/// during a solve, moved by the walk between frames).
+#[derive(Clone, Copy, Debug)]
+pub struct AnchorElem<const NV: usize> {
+    pub v: [u32; NV],
+    pub w: [f64; NV],
+    pub k: f64,
+    pub target: DVec3,
+}
+
 #[derive(Clone, Debug, Default)]
 pub struct Elements {
     pub membranes: Vec<MembraneElem>,
     pub hinges: Vec<HingeElem>,
     pub tets: Vec<TetElem>,
     pub springs: Vec<SpringElem>,
+    /// Anchors at skin vertices and at skin face barycentres (KCK18 section 3).
+    pub vertex_anchors: Vec<AnchorElem<1>>,
+    pub face_anchors: Vec<AnchorElem<3>>,
 }
 
 impl Elements {
@@ -75,7 +88,9 @@ impl Elements {
         let t: f64 = self.tets.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum();
         let h: f64 = self.hinges.iter().map(|e| e.rest.weight).sum();
         let s: f64 = self.springs.iter().map(|e| e.k * length * length).sum();
-        m + t + h + s
+        let a: f64 =
+            self.vertex_anchors.iter().map(|e| e.k).sum::<f64>() + self.face_anchors.iter().map(|e| e.k).sum::<f64>();
+        m + t + h + s + a * length * length
     }
 }
 
@@ -86,6 +101,8 @@ pub struct SolverBody {
     pub topology_key: u64,
     /// Packed vertex index -> entity.
     pub vertices: Vec<Entity>,
+    /// Anchor entities in element order: `elements.vertex_anchors`, then `face_anchors`.
+    pub anchors: Vec<Entity>,
     pub x: Vec<DVec3>,
     pub v: Vec<DVec3>,
     pub mass: Vec<f64>,
@@ -172,6 +189,7 @@ impl SolverBody {
         SolverBody {
             topology_key: 0,
             vertices: Vec::new(),
+            anchors: Vec::new(),
             x: mesh.rest.clone(),
             v: vec![DVec3::ZERO; n],
             mass: vec![0.0; n],

@@ -6,7 +6,7 @@ use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
 
-use super::body::Elements;
+use super::body::{AnchorElem, Elements};
 use super::pattern::{pairs, Pattern, DOUBLE, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::{hinge, membrane, spring, tet};
@@ -33,8 +33,15 @@ pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
         sum_chunks(&elements.membranes, |e| membrane::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
         sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &e.positions(x))),
         sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
-        sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize])),
+        sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize]))
+            + sum_chunks(&elements.vertex_anchors, |e| anchor_energy(e, x))
+            + sum_chunks(&elements.face_anchors, |e| anchor_energy(e, x)),
     ]
+}
+
+fn anchor_energy<const NV: usize>(e: &AnchorElem<NV>, x: &[DVec3]) -> f64 {
+    let r = (0..NV).map(|i| e.w[i] * x[e.v[i] as usize]).sum::<DVec3>() - e.target;
+    0.5 * e.k * r.length_squared()
 }
 
 /// The result of one assembly.
@@ -94,6 +101,18 @@ pub fn assemble(
             }
             (spring::energy(e.k, a, b), gv, h)
         },
+    );
+    out.parts[3] += acc.class::<_, 1, 3>(
+        &el.vertex_anchors,
+        &pattern.vertex_anchors,
+        |e| e.v,
+        |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
+    );
+    out.parts[3] += acc.class::<_, 3, 9>(
+        &el.face_anchors,
+        &pattern.face_anchors,
+        |e| e.v,
+        |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
     );
     out.force_scale = acc.force;
     out
@@ -203,6 +222,12 @@ pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
     for e in &el.springs {
         let d = spring::gradient(e.k, x[e.v[0] as usize], x[e.v[1] as usize]);
         add(&e.v, &[d.x, d.y, d.z, -d.x, -d.y, -d.z]);
+    }
+    for e in &el.vertex_anchors {
+        add(&e.v, spring::anchor_eval::<1, 3>(e.k, &e.w, &gather(x, &e.v), e.target).1.as_slice());
+    }
+    for e in &el.face_anchors {
+        add(&e.v, spring::anchor_eval::<3, 9>(e.k, &e.w, &gather(x, &e.v), e.target).1.as_slice());
     }
     g
 }

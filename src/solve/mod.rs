@@ -11,5 +11,5 @@ pub mod newton;
 pub mod ordering;
 pub mod pattern;
 
-pub use body::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
+pub use body::{AnchorElem, Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};

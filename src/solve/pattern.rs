@@ -23,6 +23,8 @@ pub struct Pattern {
     pub hinges: Vec<u32>,
     pub tets: Vec<u32>,
     pub springs: Vec<u32>,
+    pub vertex_anchors: Vec<u32>,
+    pub face_anchors: Vec<u32>,
     /// Elimination order of the free DOFs (nested dissection of the vertices): order[k] is
     /// the DOF eliminated k-th.
     pub order: Vec<u32>,
@@ -86,6 +88,7 @@ impl Pattern {
         elements.hinges.iter().for_each(|e| link(&e.v));
         elements.tets.iter().for_each(|e| link(&e.v));
         elements.springs.iter().for_each(|e| link(&e.v));
+        elements.face_anchors.iter().for_each(|e| link(&e.v));
         for (v, a) in adj.iter_mut().enumerate() {
             a.push(v as u32); // every free DOF has a diagonal entry
             a.sort_unstable();
@@ -150,12 +153,16 @@ impl Pattern {
             hinges: Vec::new(),
             tets: Vec::new(),
             springs: Vec::new(),
+            vertex_anchors: Vec::new(),
+            face_anchors: Vec::new(),
             order,
         };
         p.membranes = elements.membranes.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.hinges = elements.hinges.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.tets = elements.tets.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.springs = elements.springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.vertex_anchors = elements.vertex_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.face_anchors = elements.face_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p
     }
 

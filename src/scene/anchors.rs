@@ -1,0 +1,217 @@
+//! Building the KCK18 parts of a scene: body animations (articulated poses, OBJ sequences) and
+//! the anchors' initial binding to the body.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::build::{Builder, BuiltLayer, LayerMesh};
+use super::schema::{AnchorSpec, PoseSpec};
+use super::SceneError;
+use crate::coupling::walk::{BodySurface, Projector, SurfacePoint};
+use crate::mesh::{self, bodies, SurfaceMesh};
+use crate::model::{AnchorMethod, Interpolation, Keyframes, LayerKind};
+
+/// Anchors bound at load (SI units): (skin vertex, body point, stiffness N/m) and (skin face,
+/// body point, stiffness) for the barycentres.
+#[derive(Clone, Debug)]
+pub struct BuiltAnchors {
+    pub skin: usize,
+    pub body: usize,
+    pub method: AnchorMethod,
+    pub slide: f64,
+    pub surface: BodySurface,
+    pub vertex: Vec<(u32, SurfacePoint, f64)>,
+    pub face: Vec<(u32, SurfacePoint, f64)>,
+    /// The farthest skin point from the body at load (m), reported.
+    pub bind_distance: f64,
+}
+
+impl Builder {
+    /// Displacements of the posed layer for frames 0 to `frames` (an exact pose per weight).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn articulate(
+        &self,
+        at: &str,
+        pose: &PoseSpec,
+        weights: &[(u32, f64)],
+        interpolation: Interpolation,
+        layer: &BuiltLayer,
+        len: f64,
+        frames: u32,
+    ) -> Result<Vec<Vec<DVec3>>, SceneError> {
+        if weights.is_empty() {
+            return Err(self.err(format!("{at}.weights"), "needs at least one keyframe"));
+        }
+        if let Some(i) = (1..weights.len()).find(|&i| weights[i].0 <= weights[i - 1].0) {
+            return Err(self.err(format!("{at}.weights[{i}]"), "keyframes out of order"));
+        }
+        if let Some(i) = weights.iter().position(|w| !w.1.is_finite()) {
+            return Err(self.err(format!("{at}.weights[{i}]"), "must be finite"));
+        }
+        if let PoseSpec::Elbow { bend_radius, .. } = pose {
+            if !(*bend_radius > 0.0 && bend_radius.is_finite()) {
+                return Err(self.err(format!("{at}.pose.bend_radius"), format!("must be > 0 (got {bend_radius})")));
+            }
+        }
+        let rest = layer.mesh.rest();
+        let (lo, hi) = rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let centre = 0.5 * (lo + hi);
+        let keys = Keyframes(weights.to_vec());
+        Ok((0..=frames)
+            .map(|f| {
+                let w = keys.at_with(f as f64, interpolation);
+                rest.iter()
+                    .map(|&p| {
+                        let posed = match *pose {
+                            PoseSpec::Elbow { angle, bend_radius } => {
+                                bodies::elbow(p, centre, w * bodies::radians(angle), bend_radius * len)
+                            }
+                            PoseSpec::Fold { angle } => bodies::fold(p, centre, w * bodies::radians(angle)),
+                        };
+                        posed - p
+                    })
+                    .collect()
+            })
+            .collect())
+    }
+
+    /// Displacements from rest of every file of an OBJ sequence (the vertex count checked).
+    pub(super) fn obj_sequence(
+        &self,
+        at: &str,
+        files: &[String],
+        layer: &BuiltLayer,
+        len: f64,
+        offset: DVec3,
+    ) -> Result<Vec<Vec<DVec3>>, SceneError> {
+        if files.is_empty() {
+            return Err(self.err(format!("{at}.files"), "needs at least one file"));
+        }
+        let rest = layer.mesh.rest();
+        files
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let full = self.dir.join(f);
+                let field = format!("{at}.files[{i}]");
+                if !full.is_file() {
+                    return Err(SceneError::at_field(&full, &field, format!("file not found: {}", full.display())));
+                }
+                let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e))?;
+                if m.rest.len() != rest.len() {
+                    return Err(SceneError::at_field(
+                        &full,
+                        &field,
+                        format!(
+                            "{} vertices, but layer \"{}\" has {}: a sequence keeps the mesh's vertices",
+                            m.rest.len(),
+                            layer.name,
+                            rest.len()
+                        ),
+                    ));
+                }
+                Ok(m.rest.iter().zip(rest).map(|(p, r)| *p + offset - *r).collect())
+            })
+            .collect()
+    }
+
+    /// Validates the anchors and binds each skin vertex and face barycentre to its closest
+    /// body point (KCK18 section 3).
+    pub(super) fn anchors(
+        &self,
+        at: &str,
+        a: &AnchorSpec,
+        layers: &[BuiltLayer],
+        index: &HashMap<String, usize>,
+        len: f64,
+        stress: f64,
+    ) -> Result<BuiltAnchors, SceneError> {
+        let find = |field: &str, name: &str| {
+            index
+                .get(name)
+                .copied()
+                .ok_or_else(|| self.err(format!("{at}.{field}"), format!("no layer named \"{name}\" in this patch")))
+        };
+        let (skin, body) = (find("skin", &a.skin)?, find("body", &a.body)?);
+        let (LayerMesh::Surface(skin_mesh), LayerKind::Shell) = (&layers[skin].mesh, layers[skin].kind) else {
+            return Err(self.err(format!("{at}.skin"), format!("\"{}\" is not a shell layer", a.skin)));
+        };
+        let (LayerMesh::Surface(body_mesh), LayerKind::Kinematic) = (&layers[body].mesh, layers[body].kind) else {
+            return Err(self.err(format!("{at}.body"), format!("\"{}\" is not a kinematic surface layer", a.body)));
+        };
+        if !(a.stiffness > 0.0 && a.stiffness.is_finite()) {
+            return Err(self.err(format!("{at}.stiffness"), format!("must be > 0 (got {})", a.stiffness)));
+        }
+        if !(a.slide > 0.0 && a.slide <= 1.0) {
+            return Err(self.err(format!("{at}.slide"), format!("must be in (0, 1] (got {})", a.slide)));
+        }
+        let (lo, hi) =
+            body_mesh.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), p| (l.min(*p), h.max(*p)));
+        let limit = match a.max_distance {
+            Some(d) if d > 0.0 && d.is_finite() => d * len,
+            Some(d) => return Err(self.err(format!("{at}.max_distance"), format!("must be > 0 (got {d})"))),
+            None => 0.05 * (hi - lo).length(),
+        };
+        let (surface, issues) = BodySurface::new(body_mesh.faces.clone(), &body_mesh.rest);
+        if !issues.degenerate.is_empty() || !issues.non_manifold.is_empty() {
+            // Meshes are checked at load, so only procedural slivers get here: documented
+            // fallback, they are walked around as boundaries.
+            tracing::warn!(?issues, "body \"{}\": faces or edges the walk treats as boundaries", a.body);
+        }
+        let projector = Projector::new(&surface, &body_mesh.rest);
+        let mut bind_distance = 0.0f64;
+        let mut bind = |p: DVec3, what: &dyn Fn() -> String| -> Result<SurfacePoint, SceneError> {
+            let q = projector.project(&surface, &body_mesh.rest, p).ok_or_else(|| {
+                self.err(format!("{at}.body"), format!("\"{}\" has no usable face to bind to", a.body))
+            })?;
+            let d = (surface.position(&body_mesh.rest, q) - p).length();
+            if d > limit {
+                return Err(self.err(
+                    format!("{at}.max_distance"),
+                    format!(
+                        "{} starts {:.4} length units from the body, beyond the limit {:.4}",
+                        what(),
+                        d / len,
+                        limit / len
+                    ),
+                ));
+            }
+            bind_distance = bind_distance.max(d);
+            Ok(q)
+        };
+        let k_area = a.stiffness * stress / len;
+        let (vertex_share, face_share) = if a.faces { (1.0 / 6.0, 0.5) } else { (1.0 / 3.0, 0.0) };
+        let areas = face_areas(skin_mesh);
+        let mut vertex_k = vec![0.0; skin_mesh.rest.len()];
+        for (f, area) in skin_mesh.faces.iter().zip(&areas) {
+            f.iter().for_each(|&v| vertex_k[v as usize] += vertex_share * k_area * area);
+        }
+        let mut vertex = Vec::with_capacity(skin_mesh.rest.len());
+        for (v, p) in skin_mesh.rest.iter().enumerate() {
+            vertex.push((v as u32, bind(*p, &|| format!("skin vertex {v}"))?, vertex_k[v]));
+        }
+        let mut face = Vec::new();
+        if a.faces {
+            for (i, f) in skin_mesh.faces.iter().enumerate() {
+                let centre = f.iter().map(|&v| skin_mesh.rest[v as usize]).sum::<DVec3>() / 3.0;
+                face.push((
+                    i as u32,
+                    bind(centre, &|| format!("the centre of skin face {i}"))?,
+                    face_share * k_area * areas[i],
+                ));
+            }
+        }
+        tracing::info!(
+            "anchors: {} at vertices, {} at faces; farthest skin point from the body at load {:.3e} m",
+            vertex.len(),
+            face.len(),
+            bind_distance
+        );
+        Ok(BuiltAnchors { skin, body, method: a.method, slide: a.slide, surface, vertex, face, bind_distance })
+    }
+}
+
+fn face_areas(m: &SurfaceMesh) -> Vec<f64> {
+    m.faces.iter().map(|f| mesh::shading::triangle_area(&m.rest, f)).collect()
+}

@@ -1,0 +1,48 @@
+//! Log (KCK18): each skin layer's anchors as points coloured by how far they walked this frame
+//! (blue: not at all, red: the frame's longest walk), the anchor springs as line segments, and
+//! per patch the largest anchor jump and its excess over the step (the jump across a fold).
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+use skinsim::model::*;
+
+use crate::log::RerunSink;
+
+pub fn log_anchors(
+    sink: Res<RerunSink>,
+    patches: Query<(&Patch, Option<&AnchorReport>)>,
+    skins: Query<(&Layer, &LayerAnchors, &LayerOf)>,
+    anchors: Query<(&Anchor, &AnchorState)>,
+    positions: Query<&Position>,
+) {
+    let rec = &sink.0;
+    let at = |v: Entity| positions.get(v).map_or(DVec3::NAN, |p| p.0);
+    let f3 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
+    for (layer, list, patch) in &skins {
+        let Ok((patch, report)) = patches.get(patch.0) else { continue };
+        let states: Vec<(&Anchor, &AnchorState)> =
+            list.entities().iter().filter_map(|&a| anchors.get(a).ok()).collect();
+        let longest = states.iter().fold(0.0f64, |m, (_, s)| m.max(s.walked)).max(f64::MIN_POSITIVE);
+        let colours = states.iter().map(|(_, s)| {
+            let t = (s.walked / longest).clamp(0.0, 1.0);
+            rerun::Color::from_rgb((255.0 * t) as u8, 40, (255.0 * (1.0 - t)) as u8)
+        });
+        let base = format!("patches/{}/{}/anchors", patch.name, layer.name);
+        let points = states.iter().map(|(_, s)| f3(s.position));
+        let _ =
+            rec.log(format!("{base}/points"), &rerun::Points3D::new(points).with_colors(colours).with_radii([0.0002]));
+        let springs = states.iter().map(|(a, s)| {
+            let skin = match a.skin {
+                SkinPoint::Vertex(v) => at(v),
+                SkinPoint::Face(f) => f.iter().map(|&v| at(v)).sum::<DVec3>() / 3.0,
+            };
+            [f3(s.position), f3(skin)]
+        });
+        let _ = rec.log(format!("{base}/springs"), &rerun::LineStrips3D::new(springs));
+        if let Some(r) = report {
+            let stats = format!("stats/{}/anchors", patch.name);
+            let _ = rec.log(format!("{stats}/max_jump"), &rerun::Scalars::new([r.max_jump]));
+            let _ = rec.log(format!("{stats}/max_excess"), &rerun::Scalars::new([r.max_excess]));
+        }
+    }
+}
