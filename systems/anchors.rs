@@ -1,6 +1,8 @@
-//! AnchorWalk (KCK18 section 2): each anchor is offered a* = a0 + slide (x_skin - a0), a0 its
-//! body point on the body as posed this frame, and moves towards it over the body: by the 2D
-//! ray-tracing walk, or by the projection-springs baseline. Anchors are independent: they run
+//! AnchorWalk (KCK18 section 2): each anchor is offered a* = a0 + slide (x_skin - a_prev): a0 its
+//! body point on the body as posed this frame, x_skin - a_prev the pull of its spring at the end
+//! of the last solve (carried with the body, so a fast body does not drag anchors backwards),
+//! and moves towards it over the body: by the 2D ray-tracing walk, or by the projection-springs
+//! baseline. Anchors are independent: they run
 //! in parallel and the result does not depend on the thread count.
 //!
 //! In quasistatic mode each free skin vertex then moves with its anchor (the skin rides on the
@@ -33,17 +35,17 @@ pub fn walk_anchors(
             .entities()
             .iter()
             .map(|&a| {
-                let (anchor, _) = anchors.get(a).expect("anchor");
-                (anchor.body, skin_point(&anchor.skin))
+                let (anchor, state) = anchors.get(a).expect("anchor");
+                (anchor.body, skin_point(&anchor.skin) - state.position)
             })
             .collect();
         let surface = &body.surface;
         let projector = (anchoring.method == AnchorMethod::Project).then(|| Projector::new(surface, &x));
-        let moved: Vec<(SurfacePoint, AnchorState, Option<Stop>)> = offered
+        let moved: Vec<(SurfacePoint, AnchorState, Option<Stop>, DVec3)> = offered
             .par_iter()
-            .map_init(Vec::new, |visited, &(from, skin)| {
+            .map_init(Vec::new, |visited, &(from, pull)| {
                 let a0 = surface.position(&x, from);
-                let target = a0 + anchoring.slide * (skin - a0);
+                let target = a0 + anchoring.slide * pull;
                 let (to, walked, stop) = match anchoring.method {
                     AnchorMethod::Walk => {
                         let w = surface.walk(&x, from, target - a0, visited);
@@ -60,17 +62,18 @@ pub fn walk_anchors(
                 let jump = (surface.position(&body.rest, to) - surface.position(&body.rest, from)).length();
                 let state =
                     AnchorState { position: surface.position(&x, to), step: (target - a0).length(), walked, jump };
-                (to, state, stop)
+                (to, state, stop, a0)
             })
             .collect();
         let quasistatic = settings.get(patch.0).is_ok_and(|s| s.0.mode == SolveMode::Quasistatic);
         let mut report = AnchorReport { anchors: moved.len(), ..Default::default() };
-        for (&a, (to, state, stop)) in list.entities().iter().zip(moved) {
+        for (&a, (to, state, stop, a0)) in list.entities().iter().zip(moved) {
             report.add(&state, stop);
             let (mut anchor, mut s) = anchors.get_mut(a).expect("anchor");
             if let (true, SkinPoint::Vertex(v)) = (quasistatic, anchor.skin) {
                 let (mut p, fixed) = positions.get_mut(v).expect("skin vertex");
-                let moved_by = state.position - s.position;
+                // The body's motion under the anchor, not its slide (the skin led that).
+                let moved_by = a0 - s.position;
                 for k in (0..3).filter(|&k| !fixed.0[k]) {
                     p.0[k] += moved_by[k];
                 }

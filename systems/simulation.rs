@@ -142,4 +142,17 @@ impl Simulation {
         }
         out.iter().map(|e| self.world.get::<Position>(*e).unwrap().0).collect()
     }
+
+    /// Every anchor of a patch (KCK18): its body point and what the last walk did.
+    pub fn anchors(&mut self, patch: &str) -> Vec<(skinsim::coupling::walk::SurfacePoint, AnchorState)> {
+        let mut q = self.world.query::<(&Anchor, &AnchorState, &AnchorOf)>();
+        let mut out = Vec::new();
+        for (a, s, of) in q.iter(&self.world) {
+            let in_patch = self.world.get::<LayerOf>(of.0).and_then(|p| self.world.get::<Patch>(p.0));
+            if in_patch.is_some_and(|p| p.name == patch) {
+                out.push((a.body, *s));
+            }
+        }
+        out
+    }
 }

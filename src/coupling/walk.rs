@@ -408,6 +408,32 @@ mod tests {
         assert!(((q - p).length() - brute).abs() < 1e-12);
     }
 
+    /// Random walks over a curved closed body: every walk ends inside a triangle, never visits
+    /// a face twice, and walks no farther than the displacement it was given.
+    #[test]
+    fn random_walks_over_a_creature_are_bounded_and_visit_each_face_once() {
+        use rand::{Rng, SeedableRng};
+        let body = crate::mesh::bodies::creature(1.0, 3);
+        let (s, _) = BodySurface::new(body.faces.clone(), &body.rest);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let mut visited = Vec::new();
+        let mut crossings = 0;
+        for _ in 0..2000 {
+            let face = rng.random_range(0..s.faces.len() as u32);
+            let st = clamp_canonical(DVec2::new(rng.random(), rng.random()));
+            let d = DVec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            let w = s.walk(&body.rest, SurfacePoint { face, st }, 0.5 * d, &mut visited);
+            let mut unique = visited.clone();
+            unique.sort_unstable();
+            unique.dedup();
+            assert_eq!(unique.len(), visited.len(), "a face visited twice: {visited:?}");
+            assert!(w.end.st.x >= 0.0 && w.end.st.y >= 0.0 && w.end.st.x + w.end.st.y <= 1.0 + 1e-15);
+            assert!(w.length <= 0.5 * d.length() * (1.0 + 1e-12));
+            crossings += w.faces - 1;
+        }
+        assert!(crossings > 5000, "the walks cross edges: {crossings}");
+    }
+
     #[test]
     fn points_outside_are_clamped_into_the_triangle() {
         assert_eq!(clamp_canonical(DVec2::new(-0.5, 0.3)), DVec2::new(0.0, 0.3));

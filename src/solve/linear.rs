@@ -12,10 +12,10 @@ use faer::{Conj, MatMut, Par, Side};
 use super::pattern::Pattern;
 
 /// Below this many DOFs the factorization runs sequentially (faster on small matrices).
-pub const PARALLEL_MIN_DOFS: usize = 20_000;
+pub const PARALLEL_MIN_DOFS: usize = 20_000_000;
 /// From this many DOFs nested dissection orders the factorization; below, AMD (measured:
 /// 37 vs 62 ms per frame on the 4.4k-DOF default scene; about 5 % less fill at 100k DOFs).
-pub const NESTED_DISSECTION_MIN_DOFS: usize = 50_000;
+pub const NESTED_DISSECTION_MIN_DOFS: usize = 20_000;
 
 pub struct CholeskySolver {
     symbolic: SymbolicCholesky<u32>,

@@ -195,3 +195,22 @@ fn bake_writes_normal_maps_blends_and_a_recording() {
     let bad = skinsim().args(["bake", scene.to_str().unwrap(), "--frames", "99"]).output().unwrap();
     assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
 }
+
+#[test]
+fn kck18_skin_far_from_its_body_exits_with_status_2() {
+    let d = scratch("kck18");
+    write(&d, "square.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n");
+    let text = r#"Scene(name: "far", units: (length: Millimetre, stress: MegaPascal), frames: 1, patches: [
+        Patch(name: "p", layers: [
+            Layer(name: "body", kind: Kinematic, mesh: Obj(path: "square.obj")),
+            Layer(name: "skin", kind: Shell, mesh: Offset(layer: "body", distance: 3.0),
+                  material: (model: StableNeoHookean, young: 0.1, poisson: 0.45, thickness: 1.0)),
+        ], anchors: (skin: "skin", body: "body", stiffness: 0.002, max_distance: 1.0)),
+    ])"#;
+    let s = write(&d, "far.ron", text);
+    let out = skinsim().arg("run").arg(&s).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("far.ron") && err.contains("anchors.max_distance"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}

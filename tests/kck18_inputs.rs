@@ -1,0 +1,87 @@
+//! KCK18 bad input (issue 6): body meshes with non-manifold edges or degenerate faces, OBJ
+//! sequences whose vertex count changes, and skin that starts far from the body. Each is refused
+//! at load with the file and the problem (status 2 from the binary: tools/tests/cli.rs).
+
+use std::path::PathBuf;
+
+use skinsim::scene::{load, SceneError};
+
+const SCENE: &str = r#"Scene(
+    name: "kck18",
+    units: (length: Millimetre, stress: MegaPascal),
+    frames: 2,
+    patches: [
+        Patch(
+            name: "p",
+            layers: [
+                Layer(name: "body", kind: Kinematic, mesh: {body}),
+                Layer(name: "skin", kind: Shell, mesh: Offset(layer: "body", distance: {gap}),
+                      material: (model: StableNeoHookean, young: 0.1, poisson: 0.45, thickness: 1.0)),
+            ],
+            drivers: [{drivers}],
+            anchors: (skin: "skin", body: "body", stiffness: 0.002, max_distance: 1.0),
+        ),
+    ],
+)"#;
+
+/// Two triangles of a unit square, and a third sharing their diagonal (non-manifold) or
+/// repeating a vertex (degenerate), as OBJ text.
+const SQUARE: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("skinsim-kck18-inputs-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn load_with(name: &str, body: &str, gap: f64, drivers: &str, files: &[(&str, &str)]) -> Result<(), SceneError> {
+    let d = dir();
+    for (f, text) in files {
+        std::fs::write(d.join(f), text).unwrap();
+    }
+    let text = SCENE.replace("{body}", body).replace("{gap}", &gap.to_string()).replace("{drivers}", drivers);
+    let path = d.join(name);
+    std::fs::write(&path, text).unwrap();
+    load(&path).map(|_| ())
+}
+
+fn mentions(e: &SceneError, words: &[&str]) {
+    let msg = e.to_string();
+    for w in words {
+        assert!(msg.contains(w), "{msg:?} does not mention {w:?}");
+    }
+}
+
+#[test]
+fn a_good_body_loads_and_reports_its_binding() {
+    load_with("good.ron", r#"Obj(path: "square.obj")"#, 0.0, "", &[("square.obj", SQUARE)]).unwrap();
+}
+
+#[test]
+fn a_body_with_a_non_manifold_edge_is_refused() {
+    let obj = format!("{SQUARE}v 0.5 0.5 1\nf 1 3 5\n");
+    let e = load_with("nm.ron", r#"Obj(path: "nm.obj")"#, 0.0, "", &[("nm.obj", &obj)]).unwrap_err();
+    mentions(&e, &["nm.obj", "non-manifold", "layers[0]"]);
+}
+
+#[test]
+fn a_body_with_a_degenerate_face_is_refused() {
+    let obj = format!("{SQUARE}v 2 0 0\nf 2 5 2\n");
+    let e = load_with("deg.ron", r#"Obj(path: "deg.obj")"#, 0.0, "", &[("deg.obj", &obj)]).unwrap_err();
+    mentions(&e, &["deg.obj", "degenerate"]);
+}
+
+#[test]
+fn an_obj_sequence_that_changes_vertex_count_is_refused() {
+    let longer = format!("{SQUARE}v 2 0 0\nf 2 5 3\n");
+    let drivers = r#"ObjSequence(layer: "body", files: ["f0.obj", "f1.obj"])"#;
+    let files = [("sq.obj", SQUARE), ("f0.obj", SQUARE), ("f1.obj", longer.as_str())];
+    let e = load_with("seq.ron", r#"Obj(path: "sq.obj")"#, 0.0, drivers, &files).unwrap_err();
+    mentions(&e, &["f1.obj", "drivers[0].files[1]", "5 vertices", "has 4"]);
+}
+
+#[test]
+fn skin_far_from_the_body_is_refused_with_the_distance() {
+    let e = load_with("far.ron", r#"Obj(path: "square.obj")"#, 3.0, "", &[("square.obj", SQUARE)]).unwrap_err();
+    mentions(&e, &["far.ron", "anchors.max_distance", "skin vertex 0", "3.0000", "limit 1.0000"]);
+}
