@@ -37,9 +37,22 @@ fn stages_run_in_order_and_only_what_a_scene_declares() {
     let mut sim = Simulation::new(&load("strip_wrinkles.ron"));
     record_stages(&mut sim);
     sim.step();
-    let skipped = [Stage::Log, Stage::ConstraintResample, Stage::ConstraintAdjust];
+    let skipped = [Stage::Log, Stage::ConstraintResample, Stage::ConstraintAdjust, Stage::AnchorWalk];
     let all: Vec<Stage> = Stage::ALL.iter().copied().filter(|s| !skipped.contains(s)).collect();
-    assert_eq!(sim.world.resource::<Ran>().0, all, "drivers, no kernels and no sink: no Log, no constraint stages");
+    assert_eq!(
+        sim.world.resource::<Ran>().0,
+        all,
+        "drivers, no kernels, no anchors and no sink: no Log, no constraint stages, no walk"
+    );
+
+    // Anchors: the walk runs, between the constraint stages and Assemble.
+    let mut sim = Simulation::new(&load("kck18/crease_quick.ron"));
+    record_stages(&mut sim);
+    sim.step();
+    let ran = &sim.world.resource::<Ran>().0;
+    let at = |s: Stage| ran.iter().position(|r| *r == s);
+    assert!(at(Stage::AnchorWalk).is_some() && at(Stage::AnchorWalk) < at(Stage::Assemble), "{ran:?}");
+    assert!(at(Stage::ConstraintResample).is_none(), "{ran:?}");
 
     // No drivers: no BlendShapes work. A sink: the Log stage runs, last.
     let scene = load_str(SHEET_WITHOUT_DRIVERS, &scene_path("still.ron")).unwrap();

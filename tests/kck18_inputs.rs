@@ -85,3 +85,28 @@ fn skin_far_from_the_body_is_refused_with_the_distance() {
     let e = load_with("far.ron", r#"Obj(path: "square.obj")"#, 3.0, "", &[("square.obj", SQUARE)]).unwrap_err();
     mentions(&e, &["far.ron", "anchors.max_distance", "skin vertex 0", "3.0000", "limit 1.0000"]);
 }
+
+/// A painted stiffness: the red channel ramps 0 -> 1 across x and maps to 1x -> 3x, so face
+/// anchors on the right hold about three times as hard per unit area as those on the left; a
+/// range that maps a present colour to zero is refused.
+#[test]
+fn a_stiffness_map_paints_the_anchors_and_a_non_positive_factor_is_refused() {
+    let body = r#"Grid(size: (10.0, 10.0), cells: (10, 10), pattern: Alternating)"#;
+    let map = r#"stiffness_map: (map: Ramp(axis: X, from: (0.0, 0.0, 0.0), to: (1.0, 0.0, 0.0)), range: {range}),"#;
+    let text = |range: &str| {
+        SCENE.replace("{body}", body).replace("{gap}", "0.0").replace("{drivers}", "").replace(
+            "max_distance: 1.0)",
+            &format!("max_distance: 1.0, {})", map.replace("{range}", range)).replace(",)", ")"),
+        )
+    };
+    let path = dir().join("painted.ron");
+    std::fs::write(&path, text("(1.0, 3.0)")).unwrap();
+    let built = load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let a = built.patches[0].anchors.as_ref().unwrap();
+    let per_area: Vec<f64> = a.face.iter().map(|&(_, _, k)| k).collect();
+    let (lo, hi) = per_area.iter().fold((f64::INFINITY, 0.0f64), |(l, h), k| (l.min(*k), h.max(*k)));
+    assert!(hi / lo > 2.5 && hi / lo < 3.0, "stiffest / softest face anchor: {}", hi / lo);
+    std::fs::write(&path, text("(0.0, 1.0)")).unwrap();
+    let e = load(&path).unwrap_err();
+    mentions(&e, &["painted.ron", "anchors.stiffness_map.range", "must be > 0"]);
+}

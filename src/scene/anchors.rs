@@ -181,6 +181,9 @@ impl Builder {
             Ok(q)
         };
         let k_area = a.stiffness * stress / len;
+        let uv = skin_mesh.uv.clone();
+        let factor = self.stiffness_factors(at, a, &uv)?;
+        let face_uv = |f: &[u32; 3]| f.iter().map(|&v| uv[v as usize]).sum::<glam::DVec2>() / 3.0;
         let (vertex_share, face_share) = if a.faces { (1.0 / 6.0, 0.5) } else { (1.0 / 3.0, 0.0) };
         let areas = face_areas(skin_mesh);
         let mut vertex_k = vec![0.0; skin_mesh.rest.len()];
@@ -189,17 +192,15 @@ impl Builder {
         }
         let mut vertex = Vec::with_capacity(skin_mesh.rest.len());
         for (v, p) in skin_mesh.rest.iter().enumerate() {
-            vertex.push((v as u32, bind(*p, &|| format!("skin vertex {v}"))?, vertex_k[v]));
+            let k = vertex_k[v] * factor(uv[v]);
+            vertex.push((v as u32, bind(*p, &|| format!("skin vertex {v}"))?, k));
         }
         let mut face = Vec::new();
         if a.faces {
             for (i, f) in skin_mesh.faces.iter().enumerate() {
                 let centre = f.iter().map(|&v| skin_mesh.rest[v as usize]).sum::<DVec3>() / 3.0;
-                face.push((
-                    i as u32,
-                    bind(centre, &|| format!("the centre of skin face {i}"))?,
-                    face_share * k_area * areas[i],
-                ));
+                let k = face_share * k_area * areas[i] * factor(face_uv(f));
+                face.push((i as u32, bind(centre, &|| format!("the centre of skin face {i}"))?, k));
             }
         }
         tracing::info!(
@@ -209,6 +210,35 @@ impl Builder {
             bind_distance
         );
         Ok(BuiltAnchors { skin, body, method: a.method, slide: a.slide, surface, vertex, face, bind_distance })
+    }
+}
+
+impl Builder {
+    /// The stiffness factor over the skin's material space: 1, or the painted red channel.
+    #[allow(clippy::type_complexity)]
+    fn stiffness_factors(
+        &self,
+        at: &str,
+        a: &AnchorSpec,
+        uv: &[glam::DVec2],
+    ) -> Result<Box<dyn Fn(glam::DVec2) -> f64>, SceneError> {
+        let Some(m) = &a.stiffness_map else { return Ok(Box::new(|_| 1.0)) };
+        let lo = uv.iter().fold(glam::DVec2::INFINITY, |a, p| a.min(*p));
+        let hi = uv.iter().fold(glam::DVec2::NEG_INFINITY, |a, p| a.max(*p));
+        let map = self.rgb_map(&format!("{at}.stiffness_map.map"), &m.map, lo, hi)?;
+        let (k0, k1) = m.range;
+        let reds = map.values.iter().map(|v| v[0] as f64);
+        let (rmin, rmax) = reds.fold((f64::INFINITY, f64::NEG_INFINITY), |(x, y), r| (x.min(r), y.max(r)));
+        for r in [rmin, rmax] {
+            let f = k0 + (k1 - k0) * r;
+            if !(f > 0.0 && f.is_finite()) {
+                return Err(self.err(
+                    format!("{at}.stiffness_map.range"),
+                    format!("maps red {r:.3} (present in the map) to a stiffness factor of {f}: must be > 0"),
+                ));
+            }
+        }
+        Ok(Box::new(move |p| k0 + (k1 - k0) * map.sample(p).x))
     }
 }
 

@@ -23,13 +23,7 @@ impl Builder {
         let uv = mesh.material_positions();
         let lo = uv.iter().fold(DVec2::INFINITY, |a, p| a.min(*p));
         let hi = uv.iter().fold(DVec2::NEG_INFINITY, |a, p| a.max(*p));
-        let map = match &p.map {
-            MapSource::Png(path) => self.png_map(&format!("{at}.map"), path, lo, hi)?,
-            source => {
-                self.check_colours(&format!("{at}.map"), source)?;
-                rasterize(source, lo, hi)
-            }
-        };
+        let map = self.rgb_map(&format!("{at}.map"), &p.map, lo, hi)?;
         let channel = |name: &str, k: usize, m: Option<(f64, f64)>| -> Result<Option<ChannelMap>, SceneError> {
             let Some((a, b)) = m else { return Ok(None) };
             let cm = ChannelMap { lo: a, hi: b };
@@ -55,6 +49,17 @@ impl Builder {
             thickness: channel("thickness", 2, p.thickness)?,
             map,
         })
+    }
+
+    /// A PNG or procedural map stretched over [lo, hi] of material space.
+    pub(super) fn rgb_map(&self, field: &str, source: &MapSource, lo: DVec2, hi: DVec2) -> Result<RgbMap, SceneError> {
+        match source {
+            MapSource::Png(path) => self.png_map(field, path, lo, hi),
+            source => {
+                self.check_colours(field, source)?;
+                Ok(rasterize(source, lo, hi))
+            }
+        }
     }
 
     fn png_map(&self, field: &str, path: &str, lo: DVec2, hi: DVec2) -> Result<RgbMap, SceneError> {

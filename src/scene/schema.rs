@@ -132,6 +132,17 @@ pub struct AnchorSpec {
     /// body's bounding-box diagonal. Farther is an error.
     #[serde(default)]
     pub max_distance: Option<f64>,
+    /// Paints the stiffness: factor = lo + (hi - lo) x red of `map`, sampled at each anchor's
+    /// skin point in the skin's material space.
+    #[serde(default)]
+    pub stiffness_map: Option<StiffnessMapSpec>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "StiffnessMap")]
+pub struct StiffnessMapSpec {
+    pub map: MapSource,
+    pub range: (f64, f64),
 }
 
 /// Constraint kernels that hold `upper` to `lower` at frequencies below the critical
