@@ -55,6 +55,12 @@ pub fn membrane_psi<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel
     let c11 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
     let c22 = f[3] * f[3] + f[4] * f[4] + f[5] * f[5];
     let c12 = f[0] * f[3] + f[1] * f[4] + f[2] * f[5];
+    membrane_psi_of_c(model, lame, [c11, c22, c12])
+}
+
+/// The same energy density as a function of C = F^T F: [C11, C22, C12].
+pub fn membrane_psi_of_c<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, lame: Lame, c: [D; 3]) -> D {
+    let [c11, c22, c12] = c;
     let det_c = c11 * c22 - c12 * c12;
     let tr_c = c11 + c22;
     let (mu, la) = (lame.mu, lame.lambda);
