@@ -11,10 +11,13 @@ use faer::{Conj, MatMut, Par, Side};
 
 use super::pattern::Pattern;
 
-/// Below this many DOFs the factorization runs sequentially (faster on small matrices).
-pub const PARALLEL_MIN_DOFS: usize = 20_000_000;
+/// Below this many DOFs the factorization runs sequentially. Measured on 2 cores: a 30.7k-DOF
+/// shell (KCK18 creature) 110-135 ms sequential against 150-180 ms parallel per factorization;
+/// a 55k-DOF tet slab (H15 patch_3d_small) 230 ms either way. Parallel is left to larger problems.
+pub const PARALLEL_MIN_DOFS: usize = 200_000;
 /// From this many DOFs nested dissection orders the factorization; below, AMD (measured:
-/// 37 vs 62 ms per frame on the 4.4k-DOF default scene; about 5 % less fill at 100k DOFs).
+/// 37 vs 62 ms per frame on the 4.4k-DOF default scene; about 5 % less fill at 100k DOFs; on the
+/// 30.7k-DOF creature shell 90-110 against 110-135 ms per factorization).
 pub const NESTED_DISSECTION_MIN_DOFS: usize = 20_000;
 
 pub struct CholeskySolver {
