@@ -98,6 +98,17 @@ fn same_scene_same_bits_whatever_the_thread_count() {
         .collect();
     assert_eq!(hashes[1], hashes[2], "two runs with 2 threads differ");
     assert_eq!(hashes[0], hashes[1], "1 and 2 threads differ");
+
+    // Anchors walk in parallel, each on its own: the same bits too (KCK18 crease, 6 frames).
+    let scene = load("kck18/crease_quick.ron");
+    let hashes: Vec<u64> = [1, 2]
+        .iter()
+        .map(|&n| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+            pool.install(|| positions_hash(&mut run_frames(&scene, 6)))
+        })
+        .collect();
+    assert_eq!(hashes[0], hashes[1], "KCK18 anchors: 1 and 2 threads differ");
 }
 
 #[test]
