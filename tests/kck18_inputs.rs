@@ -110,3 +110,23 @@ fn a_stiffness_map_paints_the_anchors_and_a_non_positive_factor_is_refused() {
     let e = load(&path).unwrap_err();
     mentions(&e, &["painted.ron", "anchors.stiffness_map.range", "must be > 0"]);
 }
+
+/// KCK18 section 3: the skin under anchors is Stable Neo-Hookean unless the scene says otherwise.
+#[test]
+fn an_anchored_skin_defaults_to_stable_neo_hookean() {
+    use skinsim::physics::ConstitutiveModel;
+    let text = SCENE
+        .replace("{body}", r#"Obj(path: "square.obj")"#)
+        .replace("{gap}", "0.0")
+        .replace("{drivers}", "")
+        .replace("model: StableNeoHookean, ", "");
+    let d = dir();
+    std::fs::write(d.join("square.obj"), SQUARE).unwrap();
+    std::fs::write(d.join("default.ron"), &text).unwrap();
+    let built = load(&d.join("default.ron")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(built.patches[0].layers[1].material.unwrap().model, ConstitutiveModel::StableNeoHookean);
+    let stated = text.replace("young: 0.1", "model: BazantHencky, young: 0.1");
+    std::fs::write(d.join("stated.ron"), stated).unwrap();
+    let built = load(&d.join("stated.ron")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(built.patches[0].layers[1].material.unwrap().model, ConstitutiveModel::BazantHencky);
+}

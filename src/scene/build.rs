@@ -282,7 +282,14 @@ impl Builder {
             if let Some(prev) = index.insert(l.name.clone(), li) {
                 return Err(self.err(format!("{lat}.name"), format!("also the name of layers[{prev}]")));
             }
-            layers.push(self.layer(&lat, l, len, stress, offset, &layers, &index)?);
+            // KCK18 section 3: a skin under anchors is Stable Neo-Hookean unless stated.
+            let mut l = l.clone();
+            if let (Some(a), Some(m)) = (&p.anchors, &mut l.material) {
+                if a.skin == l.name {
+                    m.model.get_or_insert(crate::physics::ConstitutiveModel::StableNeoHookean);
+                }
+            }
+            layers.push(self.layer(&lat, &l, len, stress, offset, &layers, &index)?);
         }
         self.check_interfaces(&at, p, &layers)?;
         let find = |field: String, name: &str| -> Result<usize, SceneError> {
@@ -692,7 +699,7 @@ impl Builder {
             return Err(self.err(format!("{at}.{missing}"), "state it, or name a preset"));
         };
         let thickness = m.thickness.or(preset.map(|p| p.2));
-        Ok(Resolved { model: m.model, young, poisson, density: m.density, thickness })
+        Ok(Resolved { model: m.model.unwrap_or_default(), young, poisson, density: m.density, thickness })
     }
 
     fn prestrain(

@@ -414,8 +414,9 @@ pub enum MeshSpec {
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Material")]
 pub struct MaterialSpec {
+    /// Default: Bazant-Hencky; Stable Neo-Hookean for the skin layer of KCK18 anchors.
     #[serde(default)]
-    pub model: ConstitutiveModel,
+    pub model: Option<ConstitutiveModel>,
     /// A shipped reference material: supplies young, poisson and thickness wherever they are
     /// not stated.
     #[serde(default)]
