@@ -93,3 +93,21 @@ fn case_15_walk_share_is_reported() {
     assert!(stats.iter().all(|s| s.patches[0].converged), "every frame converges");
     assert!(walk > 0.0);
 }
+
+/// KCK18 fig. 2: bending is off by default and on as an option; with it the squeezed skin of
+/// the elbow bends (and the solve still converges every frame).
+#[test]
+fn bending_is_an_option_on_the_anchored_skin() {
+    let (sim, stats) = run(&load("kck18/elbow_bending_quick.ron"));
+    assert!(sim.failure().is_none(), "{:?}", sim.failure());
+    assert!(stats.iter().all(|s| s.patches[0].converged));
+    let last = &stats.last().unwrap().patches[0];
+    assert!(
+        last.energy_bending > 0.01 * last.energy_membrane,
+        "{} J vs {} J",
+        last.energy_bending,
+        last.energy_membrane
+    );
+    let (_, plain) = run(&load("kck18/elbow_quick.ron"));
+    assert_eq!(plain.last().unwrap().patches[0].energy_bending, 0.0, "off by default");
+}
