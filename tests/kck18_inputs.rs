@@ -130,3 +130,32 @@ fn an_anchored_skin_defaults_to_stable_neo_hookean() {
     let built = load(&d.join("stated.ron")).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(built.patches[0].layers[1].material.unwrap().model, ConstitutiveModel::BazantHencky);
 }
+
+/// An OBJ sequence animates the body: frame start + i takes file i's positions, the last file
+/// holds after, and the anchored skin follows.
+#[test]
+fn an_obj_sequence_drives_the_body_frame_by_frame() {
+    let lifted = |z: f64| SQUARE.replace(" 0\nv", &format!(" {z}\nv")).replacen("v 0 1 0", &format!("v 0 1 {z}"), 1);
+    let files = [("base.obj", SQUARE.to_string()), ("a.obj", lifted(0.1)), ("b.obj", lifted(0.2))];
+    let d = dir();
+    for (f, t) in &files {
+        std::fs::write(d.join(f), t).unwrap();
+    }
+    let drivers = r#"ObjSequence(layer: "body", files: ["a.obj", "b.obj"], start: 1)"#;
+    let text = SCENE
+        .replace("{body}", r#"Obj(path: "base.obj")"#)
+        .replace("{gap}", "0.0")
+        .replace("{drivers}", drivers)
+        .replace("frames: 2", "frames: 3");
+    std::fs::write(d.join("sequence.ron"), text).unwrap();
+    let built = load(&d.join("sequence.ron")).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = skinsim_systems::Simulation::new(&built);
+    for (frame, z) in [(1, 0.1e-3), (2, 0.2e-3), (3, 0.2e-3)] {
+        sim.step();
+        assert!(sim.failure().is_none(), "{:?}", sim.failure());
+        let body = sim.layer_positions("p", "body");
+        assert!(body.iter().all(|p| (p.z - z).abs() < 1e-15), "frame {frame}: {body:?}");
+        let skin = sim.layer_positions("p", "skin");
+        assert!(skin.iter().all(|p| (p.z - z).abs() < 1e-9), "frame {frame}: the skin follows: {skin:?}");
+    }
+}

@@ -18,14 +18,12 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, String> {
         let mesh = model.mesh;
         let base = m.rest.len() as u32;
         let nv = mesh.positions.len() / 3;
-        m.rest.extend(
-            mesh.positions.chunks_exact(3).map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * to_metres),
-        );
+        m.rest.extend(mesh.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2]) * to_metres));
         let mut uv: Vec<Option<DVec2>> = vec![None; nv];
         if !mesh.texcoords.is_empty() && mesh.texcoord_indices.len() == mesh.indices.len() {
             for (vi, ti) in mesh.indices.iter().zip(&mesh.texcoord_indices) {
                 let t = &mesh.texcoords[2 * *ti as usize..2 * *ti as usize + 2];
-                uv[*vi as usize].get_or_insert(DVec2::new(t[0] as f64, t[1] as f64) * to_metres);
+                uv[*vi as usize].get_or_insert(DVec2::new(t[0], t[1]) * to_metres);
             }
         }
         for (i, u) in uv.into_iter().enumerate() {
