@@ -152,17 +152,49 @@ fn a_non_finite_state_stops_the_run_and_names_the_frame_and_patch() {
 fn the_recording_holds_every_layer_and_frame() {
     let mut scene = load("strip_wrinkles.ron");
     scene.scene.frames = 3;
-    let path = std::env::temp_dir().join(format!("skinsim-rec-{}.rrd", std::process::id()));
+    let (frames, sim_time) = record(&scene, "strip");
+    // sim_time in nanoseconds: frames 1..3 at 1/30 s.
+    let expected: BTreeSet<i64> = (1..=3).map(|f| (f as f64 / 30.0 * 1e9).round() as i64).collect();
+    assert_eq!(sim_time, expected);
+    for entity in ["/patches/strip/film", "/patches/strip/base", "/stats/strip/energy", "/timings/solve"] {
+        let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
+        assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2, 3], "{entity}");
+    }
+}
+
+/// KCK18: body, skin, anchors (points and springs) and the largest jump of each method.
+#[test]
+fn the_recording_holds_the_anchors_of_each_method() {
+    let mut scene = load("kck18/crease_quick.ron");
+    scene.scene.frames = 2;
+    let (frames, _) = record(&scene, "kck18");
+    for patch in ["walk", "project", "ring"] {
+        for entity in [
+            format!("/patches/{patch}/body"),
+            format!("/patches/{patch}/skin"),
+            format!("/patches/{patch}/skin/anchors/points"),
+            format!("/patches/{patch}/skin/anchors/springs"),
+            format!("/stats/{patch}/anchors/max_jump"),
+        ] {
+            let f = frames.get(&entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
+            assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2], "{entity}");
+        }
+    }
+}
+
+/// Runs a scene into an .rrd file and reads it back with Rerun's own decoder: the frames each
+/// entity was logged at, and every sim_time.
+fn record(scene: &BuiltScene, tag: &str) -> (BTreeMap<String, BTreeSet<i64>>, BTreeSet<i64>) {
+    let path = std::env::temp_dir().join(format!("skinsim-rec-{tag}-{}.rrd", std::process::id()));
     {
         let rec = rerun::RecordingStreamBuilder::new("skinsim").recording_id("test").save(&path).unwrap();
-        let mut sim = Simulation::new(&scene);
+        let mut sim = Simulation::new(scene);
         sim.world.insert_resource(RerunSink(rec.clone()));
-        for _ in 0..3 {
+        for _ in 0..scene.scene.frames {
             sim.step();
         }
         rec.flush_blocking().unwrap();
     }
-    // Read it back with Rerun's own decoder.
     let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
     let decoder = rerun::external::re_log_encoding::DecoderApp::decode_eager(file).unwrap();
     let mut frames: BTreeMap<String, BTreeSet<i64>> = BTreeMap::new();
@@ -180,13 +212,7 @@ fn the_recording_holds_every_layer_and_frame() {
         }
     }
     let _ = std::fs::remove_file(&path);
-    // sim_time in nanoseconds: frames 1..3 at 1/30 s.
-    let expected: BTreeSet<i64> = (1..=3).map(|f| (f as f64 / 30.0 * 1e9).round() as i64).collect();
-    assert_eq!(sim_time, expected);
-    for entity in ["/patches/strip/film", "/patches/strip/base", "/stats/strip/energy", "/timings/solve"] {
-        let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
-        assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2, 3], "{entity}");
-    }
+    (frames, sim_time)
 }
 
 /// Implicit Euler with no forces moves every free vertex by h v exactly (the inertia term of the
