@@ -8,7 +8,7 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
 use skinsim::physics::Lame;
-use skinsim::solve::{AnchorElem, Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
+use skinsim::solve::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 
 pub(crate) type LayerItems<'a> = (
     &'a Layer,
@@ -43,7 +43,7 @@ pub fn gather_bodies(
         let rebuilt = key != body.topology_key;
         if rebuilt {
             rebuild(&mut body, patch_layers, &layers, &vertices, &ties, &faces, &hinges, &tets, &springs);
-            rebuild_anchors(&mut body, patch_layers, &layers, &anchors);
+            crate::anchors::rebuild_anchor_springs(&mut body, patch_layers, &layers, &anchors);
             body.topology_key = key;
         }
         if let Some(pk) = patch_kernels {
@@ -68,43 +68,8 @@ pub fn gather_bodies(
         if fixed_changed {
             body.invalidate_pattern();
         }
-        // The walk moved the anchors: new spring targets, the same pattern.
-        let nv = body.elements.vertex_anchors.len();
-        for (i, &a) in body.anchors.iter().enumerate() {
-            let target = anchors.get(a).expect("anchor of a live layer").1.position;
-            match body.elements.vertex_anchors.get_mut(i) {
-                Some(e) => e.target = target,
-                None => body.elements.face_anchors[i - nv].target = target,
-            }
-        }
+        crate::anchors::update_anchor_targets(body, &anchors);
     }
-}
-
-/// Anchor springs in element order (vertex anchors, then face anchors), with their entities.
-fn rebuild_anchors(
-    body: &mut SolverBody,
-    patch_layers: &PatchLayers,
-    layers: &Query<LayerItems>,
-    anchors: &Query<(&Anchor, &AnchorState)>,
-) {
-    let index: HashMap<Entity, u32> = body.vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
-    let (mut at_vertices, mut at_faces) = (Vec::new(), Vec::new());
-    for &l in patch_layers.entities() {
-        let Ok((.., Some(list), _)) = layers.get(l) else { continue };
-        for &a in list.entities() {
-            let Ok((anchor, state)) = anchors.get(a) else { continue };
-            let (k, target) = (anchor.stiffness, state.position);
-            match anchor.skin {
-                SkinPoint::Vertex(v) => at_vertices.push((a, AnchorElem { v: [index[&v]], w: [1.0], k, target })),
-                SkinPoint::Face(f) => {
-                    at_faces.push((a, AnchorElem { v: f.map(|v| index[&v]), w: [1.0 / 3.0; 3], k, target }))
-                }
-            }
-        }
-    }
-    body.anchors = at_vertices.iter().map(|a| a.0).chain(at_faces.iter().map(|a| a.0)).collect();
-    body.elements.vertex_anchors = at_vertices.into_iter().map(|a| a.1).collect();
-    body.elements.face_anchors = at_faces.into_iter().map(|a| a.1).collect();
 }
 
 fn topology_key(patch_layers: &PatchLayers, layers: &Query<LayerItems>) -> u64 {
