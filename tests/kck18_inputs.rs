@@ -2,6 +2,10 @@
 //! sequences whose vertex count changes, and skin that starts far from the body. Each is refused
 //! at load with the file and the problem (status 2 from the binary: tools/tests/cli.rs).
 
+mod common;
+
+use common::{mentions, scratch_dir};
+
 use std::path::PathBuf;
 
 use skinsim::scene::{load, SceneError};
@@ -29,9 +33,7 @@ const SCENE: &str = r#"Scene(
 const SQUARE: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
 
 fn dir() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("skinsim-kck18-inputs-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    scratch_dir("kck18-inputs")
 }
 
 fn load_with(name: &str, body: &str, gap: f64, drivers: &str, files: &[(&str, &str)]) -> Result<(), SceneError> {
@@ -43,13 +45,6 @@ fn load_with(name: &str, body: &str, gap: f64, drivers: &str, files: &[(&str, &s
     let path = d.join(name);
     std::fs::write(&path, text).unwrap();
     load(&path).map(|_| ())
-}
-
-fn mentions(e: &SceneError, words: &[&str]) {
-    let msg = e.to_string();
-    for w in words {
-        assert!(msg.contains(w), "{msg:?} does not mention {w:?}");
-    }
 }
 
 #[test]

@@ -2,6 +2,10 @@
 //! names the file and the field; exit status 2 for scene errors is tested on the binary in
 //! tools/tests/cli.rs.
 
+mod common;
+
+use common::{mentions, scratch_dir};
+
 use std::path::{Path, PathBuf};
 
 use skinsim::scene::{load, load_str, SceneError};
@@ -36,9 +40,7 @@ fn scene(props: &str, wavelength: &str, targets: &str) -> String {
 }
 
 fn dir() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("skinsim-lk14-inputs-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    scratch_dir("lk14-inputs")
 }
 
 /// Writes the scene into the temp folder (so relative asset paths resolve there) and loads it.
@@ -50,13 +52,6 @@ fn load_in_dir(name: &str, text: &str) -> Result<skinsim::scene::BuiltScene, Sce
 
 fn refused(text: &str) -> SceneError {
     load_str(text, Path::new("lk14.ron")).expect_err("should be refused")
-}
-
-fn mentions(e: &SceneError, words: &[&str]) {
-    let msg = e.to_string();
-    for w in words {
-        assert!(msg.contains(w), "{msg:?} does not mention {w:?}");
-    }
 }
 
 #[test]

@@ -1,6 +1,10 @@
 //! Bad input: every error names the file and the line and column or the field, and none panics.
 //! (Exit status 2 for these is tested on the binary in tools/tests/cli.rs.)
 
+mod common;
+
+use common::{mentions, scratch_dir};
+
 use std::path::{Path, PathBuf};
 
 use skinsim::scene::{load, load_str, SceneError};
@@ -25,20 +29,11 @@ const GOOD: &str = r#"Scene(
 )"#;
 
 fn dir() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("skinsim-errors-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    scratch_dir("errors")
 }
 
 fn err(text: &str) -> SceneError {
     load_str(text, Path::new("scene.ron")).expect_err("should be refused")
-}
-
-fn assert_mentions(e: &SceneError, words: &[&str]) {
-    let msg = e.to_string();
-    for w in words {
-        assert!(msg.contains(w), "{msg:?} does not mention {w:?}");
-    }
 }
 
 #[test]
@@ -50,20 +45,20 @@ fn the_reference_scene_is_valid() {
 fn malformed_ron_names_line_and_column() {
     let e = err(&GOOD.replace("frames: 2,", "frames: 2,,"));
     assert_eq!(e.position.map(|p| p.0), Some(3), "{e}");
-    assert_mentions(&e, &["scene.ron:3:"]);
+    mentions(&e, &["scene.ron:3:"]);
 }
 
 #[test]
 fn unknown_field_is_refused_with_its_position() {
     let e = err(&GOOD.replace("poisson: 0.3,", "poisson: 0.3, stiffnes: 2.0,"));
     assert!(e.position.is_some());
-    assert_mentions(&e, &["stiffnes"]);
+    mentions(&e, &["stiffnes"]);
 }
 
 #[test]
 fn empty_scene() {
     let e = err(r#"Scene(name: "e", frames: 1, patches: [])"#);
-    assert_mentions(&e, &["patches", "empty"]);
+    mentions(&e, &["patches", "empty"]);
 }
 
 #[test]
@@ -77,7 +72,7 @@ fn bad_material_values_name_the_field() {
         ("poisson: 0.3", "poisson: -1.0", "material.poisson"),
     ] {
         let e = err(&GOOD.replace(from, to));
-        assert_mentions(&e, &[field, "\"film\""]);
+        mentions(&e, &[field, "\"film\""]);
         assert!(e.field.is_some());
     }
 }
@@ -85,13 +80,13 @@ fn bad_material_values_name_the_field() {
 #[test]
 fn keyframes_out_of_order() {
     let e = err(&GOOD.replace("[(0, 0.0), (2, 0.01)]", "[(2, 0.01), (1, 0.0)]"));
-    assert_mentions(&e, &["keyframes[1]", "out of order"]);
+    mentions(&e, &["keyframes[1]", "out of order"]);
 }
 
 #[test]
 fn unknown_layer_in_a_driver() {
     let e = err(&GOOD.replace("layers: [\"base\"]", "layers: [\"bsae\"]"));
-    assert_mentions(&e, &["drivers[0]", "bsae"]);
+    mentions(&e, &["drivers[0]", "bsae"]);
 }
 
 #[test]
@@ -100,7 +95,7 @@ fn missing_mesh_file_names_the_file() {
         "mesh: Grid(size: (4.0, 2.0), cells: (4, 2)),\n                      material",
         "mesh: Obj(path: \"nowhere.obj\"),\n                      material",
     ));
-    assert_mentions(&e, &["nowhere.obj", "not found"]);
+    mentions(&e, &["nowhere.obj", "not found"]);
 }
 
 fn obj_scene(name: &str, obj: &str) -> SceneError {
@@ -122,16 +117,10 @@ const QUAD: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
 
 #[test]
 fn bad_meshes_are_refused() {
-    assert_mentions(&obj_scene("degenerate", &format!("{QUAD}f 1 2 3\nf 1 3 3\n")), &["degenerate"]);
-    assert_mentions(&obj_scene("duplicate", &format!("{QUAD}f 1 2 3\nf 1 3 4\nf 3 1 2\n")), &["same three vertices"]);
-    assert_mentions(
-        &obj_scene("nonmanifold", &format!("{QUAD}v 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 3 5\n")),
-        &["non-manifold"],
-    );
-    assert_mentions(
-        &obj_scene("unreferenced", &format!("{QUAD}v 5 5 5\nf 1 2 3\nf 1 3 4\n")),
-        &["vertex 4", "not used"],
-    );
+    mentions(&obj_scene("degenerate", &format!("{QUAD}f 1 2 3\nf 1 3 3\n")), &["degenerate"]);
+    mentions(&obj_scene("duplicate", &format!("{QUAD}f 1 2 3\nf 1 3 4\nf 3 1 2\n")), &["same three vertices"]);
+    mentions(&obj_scene("nonmanifold", &format!("{QUAD}v 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 3 5\n")), &["non-manifold"]);
+    mentions(&obj_scene("unreferenced", &format!("{QUAD}v 5 5 5\nf 1 2 3\nf 1 3 4\n")), &["vertex 4", "not used"]);
     // A valid OBJ loads.
     let d = dir();
     std::fs::write(d.join("ok.obj"), format!("{QUAD}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"))
@@ -153,7 +142,7 @@ fn zero_elements_through_a_thickness() {
         Layer(name: "dermis", kind: Volume, mesh: TetSlab(size: (2.0, 2.0), cells: (2, 2), depth: 1.0, elements: 0),
               material: (young: 0.01, poisson: 0.45)),
     ])])"#);
-    assert_mentions(&e, &["mesh.elements", "zero elements"]);
+    mentions(&e, &["mesh.elements", "zero elements"]);
 }
 
 #[test]
@@ -183,11 +172,11 @@ fn layers_must_stack_on_an_earlier_volume_slab() {
         LAST,
     ])])"#;
     let e = err(&base.replace("LAST", r#"Layer(name: "sc", kind: Shell, mesh: SurfaceOf(layer: "skin"), material: (young: 1.0, poisson: 0.3, thickness: 0.01))"#));
-    assert_mentions(&e, &["layers[2]", "mesh.layer", "not a TetSlab or TetOn"]);
+    mentions(&e, &["layers[2]", "mesh.layer", "not a TetSlab or TetOn"]);
     let e = err(&base.replace("LAST", r#"Layer(name: "sc", kind: Shell, mesh: SurfaceOf(layer: "epidermis"), material: (young: 1.0, poisson: 0.3, thickness: 0.01))"#));
-    assert_mentions(&e, &["no earlier layer named \"epidermis\""]);
+    mentions(&e, &["no earlier layer named \"epidermis\""]);
     let e = err(&base.replace("LAST", r#"Layer(name: "hypo", kind: Volume, mesh: TetOn(layer: "dermis", depth: 1.0, elements: 0), material: (young: 0.01, poisson: 0.45))"#));
-    assert_mentions(&e, &["mesh.elements", "zero elements"]);
+    mentions(&e, &["mesh.elements", "zero elements"]);
     let ok = base.replace("LAST", r#"Layer(name: "sc", kind: Shell, mesh: SurfaceOf(layer: "dermis"), material: (young: 1.0, poisson: 0.3, thickness: 0.01))"#);
     load_str(&ok, Path::new("scene.ron")).unwrap();
 }
@@ -212,44 +201,44 @@ fn layers_whose_interfaces_do_not_match() {
     // The dermis as its own slab on the hypodermis' top, with other cells: not connected.
     let loose = r#"Layer(name: "dermis", kind: Volume, mesh: TetSlab(size: (4.0, 2.0), cells: (8, 4), depth: 1.0, elements: 3), material: (young: 1.0, poisson: 0.4))"#;
     let e = err(&layered(loose, "", ""));
-    assert_mentions(&e, &["layers[1] (\"dermis\").mesh", "interface", "\"hypodermis\"", "TetOn"]);
+    mentions(&e, &["layers[1] (\"dermis\").mesh", "interface", "\"hypodermis\"", "TetOn"]);
     // Same cells but separate vertices: still two unconnected volumes.
     let e = err(&layered(&loose.replace("(8, 4)", "(4, 2)"), "", ""));
-    assert_mentions(&e, &["\"dermis\"", "does not match"]);
+    mentions(&e, &["\"dermis\"", "does not match"]);
     // A shell over a layer that is not a volume slab.
     let e = err(&layered(DERMIS_ON, "", "").replace("SurfaceOf(layer: \"dermis\")", "SurfaceOf(layer: \"corneum\")"));
-    assert_mentions(&e, &["layers[2] (\"corneum\").mesh.layer", "not a TetSlab or TetOn volume"]);
+    mentions(&e, &["layers[2] (\"corneum\").mesh.layer", "not a TetSlab or TetOn volume"]);
 }
 
 #[test]
 fn prestrain_with_a_non_positive_determinant() {
     let e = err(&layered(DERMIS_ON, ", prestrain: (stretch: (1.02, 0.0, 1.0))", ""));
-    assert_mentions(&e, &["layers[2] (\"corneum\").prestrain.stretch", "determinant 0"]);
+    mentions(&e, &["layers[2] (\"corneum\").prestrain.stretch", "determinant 0"]);
     let e = err(&layered(
         &DERMIS_ON.replace("poisson: 0.4)", "poisson: 0.4), prestrain: (stretch: (1.0, 1.0, -1.0))"),
         "",
         "",
     ));
-    assert_mentions(&e, &["layers[1] (\"dermis\").prestrain.stretch", "determinant -1"]);
+    mentions(&e, &["layers[1] (\"dermis\").prestrain.stretch", "determinant -1"]);
     // A rest curvature needs hinges.
     let e = err(&layered(DERMIS_ON, "", "").replace("bending: (model: Tan)", "prestrain: (curvature: 0.1)"));
-    assert_mentions(&e, &["corneum\").prestrain.curvature", "bending"]);
+    mentions(&e, &["corneum\").prestrain.curvature", "bending"]);
     // A missing map names the map file.
     let e = err(&layered(DERMIS_ON, ", prestrain: (stretch: (1.02, 1.02, 1.0), map: \"nowhere.png\")", ""));
-    assert_mentions(&e, &["nowhere.png", "prestrain.map"]);
+    mentions(&e, &["nowhere.png", "prestrain.map"]);
 }
 
 #[test]
 fn randomization_that_makes_a_modulus_negative() {
     let e = err(&layered(DERMIS_ON, ", randomize: (amplitude: 1.2, seed: 1)", ""));
-    assert_mentions(&e, &["layers[2] (\"corneum\").randomize.amplitude", "positive", "\"corneum\" reach -200"]);
+    mentions(&e, &["layers[2] (\"corneum\").randomize.amplitude", "positive", "\"corneum\" reach -200"]);
     load_str(&layered(DERMIS_ON, ", randomize: (amplitude: 0.5, seed: 1)", ""), Path::new("scene.ron")).unwrap();
 }
 
 #[test]
 fn a_capture_outside_the_run_or_on_a_kinematic_layer() {
     let e = err(&layered(DERMIS_ON, "", r#"Capture(layers: ["corneum"], frame: 9)"#));
-    assert_mentions(&e, &["drivers[0].frame", "1 to 2"]);
+    mentions(&e, &["drivers[0].frame", "1 to 2"]);
     let e = err(&layered(DERMIS_ON, "", r#"Capture(layers: ["corneum"], frame: 1, fraction: 1.5)"#));
-    assert_mentions(&e, &["drivers[0].fraction"]);
+    mentions(&e, &["drivers[0].fraction"]);
 }

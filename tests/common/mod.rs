@@ -25,3 +25,18 @@ pub fn run(scene: &BuiltScene) -> (Simulation, Vec<FrameStats>) {
 pub fn rel(measured: f64, expected: f64) -> f64 {
     (measured - expected) / expected
 }
+
+/// A scratch folder for one test binary (scene files and assets written by the tests).
+pub fn scratch_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("skinsim-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Asserts that a scene error's message contains every word.
+pub fn mentions(e: &scene::SceneError, words: &[&str]) {
+    let msg = e.to_string();
+    for w in words {
+        assert!(msg.contains(w), "{msg:?} does not mention {w:?}");
+    }
+}
