@@ -91,7 +91,8 @@ fn case_15_walk_share_is_reported() {
     let total: f64 = stats.iter().map(|s| s.timing("total")).sum();
     println!("case 15 creature_quick: walk {:.1} ms of {:.0} ms ({:.2} %)", walk, total, 100.0 * walk / total);
     assert!(stats.iter().all(|s| s.patches[0].converged), "every frame converges");
-    assert!(walk > 0.0);
+    // (No time is asserted: the share is reported.) Every anchor took part in every walk.
+    assert!(stats.iter().all(|s| report(s, "creature").anchors == 642 + 1280));
 }
 
 /// KCK18 fig. 2: bending is off by default and on as an option; with it the squeezed skin of
