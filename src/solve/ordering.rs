@@ -1,8 +1,8 @@
 //! Fill-reducing elimination order for the sparse Cholesky: geometric nested dissection.
 //!
-//! On 2D and 3D meshes, splitting the vertices at the median of their widest axis and
-//! eliminating each half before the separator between them gives far less fill than minimum
-//! degree when hinges couple second neighbours (measured in benches/solver.rs).
+//! On 2D and 3D meshes, splitting the vertices at a median plane and eliminating each half
+//! before the separator between them gives far less fill than minimum degree when hinges
+//! couple second neighbours (measured in benches/solver.rs).
 
 use glam::DVec3;
 
@@ -22,7 +22,7 @@ pub fn nested_dissection(points: &[DVec3], adjacency: &[Vec<u32>]) -> Vec<u32> {
     }
     let mut stack = vec![Task::Split((0..n as u32).collect())];
     while let Some(task) = stack.pop() {
-        let mut vs = match task {
+        let vs = match task {
             Task::Emit(vs) => {
                 order.extend_from_slice(&vs);
                 continue;
@@ -33,21 +33,47 @@ pub fn nested_dissection(points: &[DVec3], adjacency: &[Vec<u32>]) -> Vec<u32> {
             }
             Task::Split(vs) => vs,
         };
-        let (lo, hi) = vs.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), &v| {
-            (a.min(points[v as usize]), b.max(points[v as usize]))
-        });
-        let ext = hi - lo;
-        let axis = if ext.x >= ext.y && ext.x >= ext.z {
-            0
-        } else if ext.y >= ext.z {
-            1
-        } else {
-            2
-        };
+        let (left, mut sep, rest) = best_cut(points, adjacency, vs, &mut side);
+        sep.sort_unstable();
+        // Pushed in reverse: left is processed first, the separator last.
+        stack.push(Task::Emit(sep));
+        stack.push(Task::Split(rest));
+        stack.push(Task::Split(left));
+    }
+    order
+}
+
+/// Directions tried for a cut: the axes, the face diagonals and the body diagonals.
+const DIRECTIONS: [[f64; 3]; 13] = [
+    [1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [1.0, 1.0, 0.0],
+    [1.0, -1.0, 0.0],
+    [1.0, 0.0, 1.0],
+    [1.0, 0.0, -1.0],
+    [0.0, 1.0, 1.0],
+    [0.0, 1.0, -1.0],
+    [1.0, 1.0, 1.0],
+    [1.0, 1.0, -1.0],
+    [1.0, -1.0, 1.0],
+    [-1.0, 1.0, 1.0],
+];
+
+/// Splits `vs` at the median along the direction whose separator (right-half vertices with a
+/// left neighbour) is smallest: (left, separator, rest of the right half). Trying 13 directions
+/// rather than the widest axis only cuts a closed surface across its waist instead of its
+/// length (measured on the KCK18 creature, 30.7k DOFs: 1.0e9 against 1.44e9 flops per
+/// Cholesky, 61-63 against 71-77 ms); on the flat LK14 sheets the flops
+/// stay within 2 %.
+fn best_cut(points: &[DVec3], adjacency: &[Vec<u32>], vs: Vec<u32>, side: &mut [u8]) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    let mut best: Option<(Vec<u32>, Vec<u32>, Vec<u32>)> = None;
+    for d in &DIRECTIONS {
+        let dir = DVec3::from_array(*d).normalize();
+        let mut vs = vs.clone();
+        let key = |v: u32| points[v as usize].dot(dir);
         let mid = vs.len() / 2;
-        vs.select_nth_unstable_by(mid, |a, b| {
-            points[*a as usize][axis].total_cmp(&points[*b as usize][axis]).then(a.cmp(b))
-        });
+        vs.select_nth_unstable_by(mid, |a, b| key(*a).total_cmp(&key(*b)).then(a.cmp(b)));
         let right = vs.split_off(mid);
         let left = vs;
         for &v in &left {
@@ -64,13 +90,11 @@ pub fn nested_dissection(points: &[DVec3], adjacency: &[Vec<u32>]) -> Vec<u32> {
         for &v in &left {
             side[v as usize] = 0;
         }
-        sep.sort_unstable();
-        // Pushed in reverse: left is processed first, the separator last.
-        stack.push(Task::Emit(sep));
-        stack.push(Task::Split(rest));
-        stack.push(Task::Split(left));
+        if best.as_ref().is_none_or(|b| sep.len() < b.1.len()) {
+            best = Some((left, sep, rest));
+        }
     }
-    order
+    best.expect("at least one direction")
 }
 
 #[cfg(test)]
@@ -87,5 +111,42 @@ mod tests {
         seen.sort_unstable();
         assert_eq!(seen, (0..200).collect::<Vec<_>>(), "a permutation");
         assert_eq!(*order.last().unwrap(), 100, "the top separator is eliminated last");
+    }
+
+    #[test]
+    fn a_tube_along_a_diagonal_is_cut_across_its_waist() {
+        // 100 rings of 16 vertices along (1, 1, 0): the widest axis would cut it obliquely.
+        let (rings, around) = (100u32, 16u32);
+        let axis = DVec3::new(1.0, 1.0, 0.0).normalize();
+        let (u, w) = (DVec3::new(1.0, -1.0, 0.0).normalize(), DVec3::Z);
+        let id = |r: u32, a: u32| r * around + a % around;
+        let mut pts = Vec::new();
+        let mut adj: Vec<Vec<u32>> = vec![Vec::new(); (rings * around) as usize];
+        for r in 0..rings {
+            for a in 0..around {
+                let t = std::f64::consts::TAU * a as f64 / around as f64;
+                pts.push(axis * (0.4 * r as f64) + (u * t.cos() + w * t.sin()) * 1.0);
+                let mut link = |p: u32, q: u32| {
+                    adj[p as usize].push(q);
+                    adj[q as usize].push(p);
+                };
+                link(id(r, a), id(r, a + 1));
+                if r + 1 < rings {
+                    link(id(r, a), id(r + 1, a));
+                    link(id(r, a), id(r + 1, a + 1));
+                }
+            }
+        }
+        let (left, sep, rest) = best_cut(&pts, &adj, (0..rings * around).collect(), &mut vec![0u8; pts.len()]);
+        assert_eq!(left.len() + sep.len() + rest.len(), pts.len());
+        assert!(sep.len() <= around as usize, "separator of {} vertices, one ring is {around}", sep.len());
+        let widest_x = {
+            let key = |v: &u32| pts[*v as usize].x;
+            let mut vs: Vec<u32> = (0..rings * around).collect();
+            vs.sort_by(|a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+            let left: std::collections::HashSet<u32> = vs[..vs.len() / 2].iter().copied().collect();
+            vs[vs.len() / 2..].iter().filter(|v| adj[**v as usize].iter().any(|q| left.contains(q))).count()
+        };
+        assert!(widest_x > sep.len(), "an axis cut ({widest_x}) is larger than the best cut ({})", sep.len());
     }
 }
