@@ -61,11 +61,10 @@ const DIRECTIONS: [[f64; 3]; 13] = [
 ];
 
 /// Splits `vs` at the median along the direction whose separator (right-half vertices with a
-/// left neighbour) is smallest: (left, separator, rest of the right half). Trying 13 directions
-/// rather than the widest axis only cuts a closed surface across its waist instead of its
-/// length (measured on the KCK18 creature, 30.7k DOFs: 1.0e9 against 1.44e9 flops per
-/// Cholesky, 61-63 against 71-77 ms); on the flat LK14 sheets the flops
-/// stay within 2 %.
+/// left neighbour) is smallest: (left, separator, rest of the right half). With 13 directions
+/// instead of only the widest axis, a closed surface is cut across its waist rather than along
+/// its length (measured on the KCK18 creature, 30.7k DOFs: 1.0e9 against 1.44e9 flops per
+/// Cholesky, 61-63 against 71-77 ms); on the flat LK14 sheets the flops stay within 2 %.
 fn best_cut(points: &[DVec3], adjacency: &[Vec<u32>], vs: Vec<u32>, side: &mut [u8]) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
     let mut best: Option<(Vec<u32>, Vec<u32>, Vec<u32>)> = None;
     for d in &DIRECTIONS {
