@@ -8,6 +8,8 @@ pub mod capture;
 pub mod kernels;
 pub mod log;
 pub mod log_anchors;
+pub mod properties;
+pub mod remesh;
 pub mod schedule;
 pub mod simulation;
 pub mod solve;

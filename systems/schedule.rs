@@ -1,14 +1,14 @@
 //! The frame: ten chained stages (ARCHITECTURE.md 2). A stage runs only when the scene declares
 //! what it works on: the constraint stages only with kernels, the walk only with anchors.
-//! Remesh and PropertyResample have no systems yet (issue 5).
+//! Remesh and PropertyResample run only for layers with `RemeshSettings`.
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
-use skinsim::model::{Anchor, Kernel, PatchCaptures, PatchMotion, Stage, Timings};
+use skinsim::model::{Anchor, Kernel, PatchCaptures, PatchMotion, RemeshSettings, Stage, Timings};
 
 use crate::log::{log_frame, wants_logging, RerunSink};
 use crate::log_anchors::log_anchors;
-use crate::{anchors, assemble, blend_shapes, capture, kernels, solve, writeback};
+use crate::{anchors, assemble, blend_shapes, capture, kernels, properties, remesh, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Frame;
@@ -23,8 +23,8 @@ pub fn build_schedule() -> Schedule {
     s.configure_sets(
         (
             StageSet(Stage::BlendShapes).run_if(any_with_component::<PatchMotion>),
-            StageSet(Stage::Remesh),
-            StageSet(Stage::PropertyResample),
+            StageSet(Stage::Remesh).run_if(any_with_component::<RemeshSettings>),
+            StageSet(Stage::PropertyResample).run_if(any_with_component::<RemeshSettings>),
             StageSet(Stage::ConstraintResample).run_if(any_with_component::<Kernel>),
             StageSet(Stage::ConstraintAdjust).run_if(any_with_component::<Kernel>),
             StageSet(Stage::AnchorWalk).run_if(any_with_component::<Anchor>),
@@ -36,6 +36,8 @@ pub fn build_schedule() -> Schedule {
             .chain(),
     );
     s.add_systems(timed(Stage::BlendShapes, blend_shapes::apply_motions));
+    s.add_systems(timed(Stage::Remesh, remesh::remesh_layers));
+    s.add_systems(timed(Stage::PropertyResample, properties::resample_properties));
     s.add_systems(timed(Stage::ConstraintResample, kernels::resample_kernels));
     s.add_systems(timed(Stage::ConstraintAdjust, kernels::adjust_kernels));
     s.add_systems(timed(Stage::AnchorWalk, anchors::walk_anchors));

@@ -6,7 +6,6 @@ mod common;
 use bevy_ecs::prelude::*;
 use common::*;
 use glam::DVec2;
-use skinsim::coupling::kernels::{moments, Adjusted, Sample};
 use skinsim::model::*;
 use skinsim::scene::load_str;
 use skinsim_systems::Simulation;
@@ -81,27 +80,6 @@ fn constraint_stages_run_with_kernels() {
     sim.step();
     let s = sim.step();
     assert!(s.timing("constraint_resample") > 0.0 && s.timing("constraint_adjust") > 0.0);
-}
-
-/// Weights of every kernel: affine (sum 1) and centred on the kernel's target to 1e-12.
-fn check_weights(sim: &mut Simulation) -> usize {
-    let mut q = sim.world.query::<(&Kernel, &KernelWeights)>();
-    let mut points = sim.world.query::<&MaterialPos>();
-    let mut checked = 0;
-    for (k, w) in q.iter(&sim.world) {
-        for (side, adjusted) in [(&w.upper, w.adjusted[0]), (&w.lower, w.adjusted[1])] {
-            if adjusted != Some(Adjusted::Centred) {
-                continue;
-            }
-            let pts: Vec<DVec2> = side.iter().map(|(v, _)| points.get(&sim.world, *v).unwrap().0).collect();
-            let s = Sample { vertices: (0..pts.len() as u32).collect(), weights: side.iter().map(|x| x.1).collect() };
-            let (sum, centroid) = moments(&pts, &s);
-            assert!((sum - 1.0).abs() < 1e-12, "sum {sum}");
-            assert!((centroid - k.shape.target).length() < 1e-12, "off by {:e}", (centroid - k.shape.target).length());
-            checked += 1;
-        }
-    }
-    checked
 }
 
 /// ARCHITECTURE.md 2: a kernel is resampled when one of its layers' meshes changes. Here the

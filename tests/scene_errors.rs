@@ -242,3 +242,35 @@ fn a_capture_outside_the_run_or_on_a_kinematic_layer() {
     let e = err(&layered(DERMIS_ON, "", r#"Capture(layers: ["corneum"], frame: 1, fraction: 1.5)"#));
     mentions(&e, &["drivers[0].fraction"]);
 }
+
+/// Issue 5 bad input: remesh thresholds, and remeshing a layer that has no material space.
+#[test]
+fn bad_remesh_settings_name_the_field() {
+    const REMESH: &str = "remesh: Some((size_min: 0.1, size_max: 1.0, refine_compression: 0.01))";
+    let good = GOOD.replace("bending: (model: Tan)", &format!("bending: (model: Tan), {REMESH}"));
+    load_str(&good, Path::new("scene.ron")).unwrap();
+    for (from, to, field) in [
+        ("size_min: 0.1", "size_min: 0.0", "remesh.size_min"),
+        ("size_min: 0.1", "size_min: -0.1", "remesh.size_min"),
+        ("size_min: 0.1", "size_min: 1.0", "remesh.size_min"),
+        ("size_min: 0.1", "size_min: 0.1, aspect_min: 0.0", "remesh.aspect_min"),
+        ("size_min: 0.1", "size_min: 0.1, aspect_min: 1.5", "remesh.aspect_min"),
+        ("size_min: 0.1", "size_min: 0.1, refine_angle: 0.0", "remesh.refine_angle"),
+        ("refine_compression: 0.01", "refine_compression: -0.01", "remesh.refine_compression"),
+        ("refine_compression: 0.01", "refine_compression: 0.01, refine_velocity: Some(0.0)", "remesh.refine_velocity"),
+        ("refine_compression: 0.01", "refine_compression: 0.01, every: 0", "remesh.every"),
+    ] {
+        let e = err(&good.replace(from, to));
+        mentions(&e, &[field, "\"film\""]);
+        assert!(e.field.is_some());
+    }
+    // Only shells remesh: not a kinematic layer, not a volume.
+    let e = err(&GOOD.replace("cells: (4, 2))),", &format!("cells: (4, 2)), {REMESH}),")));
+    mentions(&e, &["\"base\"", "remesh", "shell layers", "Kinematic"]);
+    let volume = r#"Scene(name: "s", frames: 1, patches: [Patch(name: "p", layers: [
+        Layer(name: "dermis", kind: Volume, mesh: TetSlab(size: (2.0, 2.0), cells: (2, 2), depth: 1.0, elements: 2),
+              material: (young: 0.01, poisson: 0.45), REMESH),
+    ])])"#;
+    let e = err(&volume.replace("REMESH", REMESH));
+    mentions(&e, &["\"dermis\"", "remesh", "shell layers", "Volume"]);
+}

@@ -3,6 +3,7 @@
 pub mod bodies;
 pub mod generate;
 pub mod obj;
+pub mod remesh;
 pub mod shading;
 pub mod topology;
 pub mod wrinkle_map;

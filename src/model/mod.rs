@@ -92,6 +92,22 @@ pub struct Bending {
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TopologyEpoch(pub u64);
 
+/// Adaptive remeshing of a shell layer (REMESH.md), SI thresholds, every `every` frames.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct RemeshSettings {
+    pub params: crate::mesh::remesh::RemeshParams,
+    pub every: u32,
+}
+
+/// What the last remesh of a layer did, and the layer's size after it.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RemeshReport {
+    pub frame: u64,
+    pub stats: crate::mesh::remesh::RemeshStats,
+    pub vertices: u32,
+    pub faces: u32,
+}
+
 // ---------------------------------------------------------------- vertices
 
 /// Vertex -> Layer.
@@ -161,6 +177,11 @@ impl LayerEdges {
 
 #[derive(Component, Clone, Copy, Debug)]
 pub struct EdgeVerts(pub [Entity; 2]);
+
+/// The two vertices opposite an interior edge, on an edge a remesh created: PropertyResample
+/// turns it into a `Hinge` (with the rest data and the map's stiffness at the midpoint).
+#[derive(Component, Clone, Copy, Debug)]
+pub struct EdgeOpposite(pub [Entity; 2]);
 
 /// A bending hinge on an interior edge: the two opposite vertices and the rest data.
 #[derive(Component, Clone, Copy, Debug)]

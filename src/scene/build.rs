@@ -69,6 +69,7 @@ pub struct BuiltLayer {
     /// (relative amplitude, seed) of the per-element modulus randomization.
     pub randomize: Option<(f64, u64)>,
     pub properties: Option<crate::model::LayerProperties>,
+    pub remesh: Option<crate::model::RemeshSettings>,
 }
 
 /// A layer's prestrain, in SI units.
@@ -670,9 +671,14 @@ impl Builder {
                 )
             }
         };
+        let remesh = match &l.remesh {
+            None => None,
+            Some(r) => Some(self.remesh(&format!("{at}.remesh"), r, l, len, &mesh, &shared)?),
+        };
         Ok(BuiltLayer {
             name: l.name.clone(),
             kind: l.kind,
+            remesh,
             mesh,
             shared,
             slab,
@@ -683,6 +689,63 @@ impl Builder {
             randomize,
             properties,
         })
+    }
+
+    /// Remeshing of a shell with a usable material space: thresholds in SI units, checked.
+    fn remesh(
+        &self,
+        at: &str,
+        r: &RemeshSpec,
+        l: &LayerSpec,
+        len: f64,
+        mesh: &LayerMesh,
+        shared: &[Option<(usize, u32)>],
+    ) -> Result<crate::model::RemeshSettings, SceneError> {
+        if l.kind != LayerKind::Shell {
+            return Err(self.err(at.to_string(), format!("remeshing is for shell layers ({:?} layer)", l.kind)));
+        }
+        let unsupported = [
+            (l.prestrain.is_some(), "prestrain"),
+            (l.randomize.is_some(), "randomize"),
+            (shared.iter().any(|s| s.is_some()), "vertices shared with another layer"),
+        ];
+        if let Some((_, what)) = unsupported.iter().find(|u| u.0) {
+            return Err(self.err(at.to_string(), format!("remeshing a layer with {what} is not supported")));
+        }
+        // Remeshing works in material space: every face needs a positive material area.
+        if let LayerMesh::Surface(m) = mesh {
+            let flat = m.faces.iter().position(|f| {
+                let u = f.map(|i| m.uv[i as usize]);
+                (u[1] - u[0]).perp_dot(u[2] - u[0]) <= 0.0
+            });
+            if let Some(face) = flat {
+                return Err(self.err(
+                    at.to_string(),
+                    format!("the layer has no usable material space (face {face} has no positive material area)"),
+                ));
+            }
+        }
+        if r.every == 0 {
+            return Err(self.err(format!("{at}.every"), "must be at least 1"));
+        }
+        // Checked in the scene's units (the messages quote the file's values), then converted.
+        let stated = crate::mesh::remesh::RemeshParams {
+            size_min: r.size_min,
+            size_max: r.size_max,
+            aspect_min: r.aspect_min,
+            refine_angle: r.refine_angle,
+            refine_compression: r.refine_compression,
+            refine_velocity: r.refine_velocity,
+        };
+        stated.check().map_err(|(field, message)| self.err(format!("{at}.{field}"), message))?;
+        let params = crate::mesh::remesh::RemeshParams {
+            size_min: r.size_min * len,
+            size_max: r.size_max * len,
+            refine_compression: r.refine_compression * len,
+            refine_velocity: r.refine_velocity.map(|v| v * len),
+            ..stated
+        };
+        Ok(crate::model::RemeshSettings { params, every: r.every })
     }
 
     /// A material with its preset's values filled in where the scene states none (in the

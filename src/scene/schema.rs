@@ -283,6 +283,44 @@ pub struct LayerSpec {
     /// A property map over the layer's material rectangle (LK14 5.2); shells only.
     #[serde(default)]
     pub properties: Option<PropertiesSpec>,
+    /// Adaptive remeshing in material space (REMESH.md); shells only.
+    #[serde(default)]
+    pub remesh: Option<RemeshSpec>,
+}
+
+/// Remeshing thresholds (REMESH.md), lengths in the scene's length unit.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Remesh")]
+pub struct RemeshSpec {
+    /// Smallest and largest edge length.
+    pub size_min: f64,
+    pub size_max: f64,
+    /// Smallest ratio of the two sizes of an anisotropic metric, in (0, 1].
+    #[serde(default = "default_aspect_min")]
+    pub aspect_min: f64,
+    /// Largest turn of the normal across an edge (radians).
+    #[serde(default = "default_refine_angle")]
+    pub refine_angle: f64,
+    /// Largest unresolved buckle amplitude (a length).
+    pub refine_compression: f64,
+    /// Velocity-gradient term (length per second), for the implicit-Euler mode.
+    #[serde(default)]
+    pub refine_velocity: Option<f64>,
+    /// Remesh every this many frames.
+    #[serde(default = "default_every")]
+    pub every: u32,
+}
+
+fn default_aspect_min() -> f64 {
+    0.2
+}
+
+fn default_refine_angle() -> f64 {
+    0.3
+}
+
+fn default_every() -> u32 {
+    1
 }
 
 /// An RGB property map and how each channel (0 to 1) scales the layer's reference values:

@@ -255,6 +255,9 @@ fn spawn_layer(
     if let Some(p) = &l.properties {
         e.insert(p.clone());
     }
+    if let Some(r) = l.remesh {
+        e.insert((r, RemeshReport::default()));
+    }
     let layer = e.id();
     let rest = l.mesh.rest();
     let uv = l.mesh.material_positions();

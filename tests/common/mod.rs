@@ -3,6 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
+use glam::DVec2;
+use skinsim::coupling::kernels::{moments, Adjusted, Sample};
+use skinsim::model::{Kernel, KernelWeights, MaterialPos};
 use skinsim::scene::{self, BuiltScene};
 use skinsim_systems::{FrameStats, Simulation};
 
@@ -39,4 +42,25 @@ pub fn mentions(e: &scene::SceneError, words: &[&str]) {
     for w in words {
         assert!(msg.contains(w), "{msg:?} does not mention {w:?}");
     }
+}
+
+/// Weights of every kernel: affine (sum 1) and centred on the kernel's target to 1e-12.
+pub fn check_weights(sim: &mut Simulation) -> usize {
+    let mut q = sim.world.query::<(&Kernel, &KernelWeights)>();
+    let mut points = sim.world.query::<&MaterialPos>();
+    let mut checked = 0;
+    for (k, w) in q.iter(&sim.world) {
+        for (side, adjusted) in [(&w.upper, w.adjusted[0]), (&w.lower, w.adjusted[1])] {
+            if adjusted != Some(Adjusted::Centred) {
+                continue;
+            }
+            let pts: Vec<DVec2> = side.iter().map(|(v, _)| points.get(&sim.world, *v).unwrap().0).collect();
+            let s = Sample { vertices: (0..pts.len() as u32).collect(), weights: side.iter().map(|x| x.1).collect() };
+            let (sum, centroid) = moments(&pts, &s);
+            assert!((sum - 1.0).abs() < 1e-12, "sum {sum}");
+            assert!((centroid - k.shape.target).length() < 1e-12, "off by {:e}", (centroid - k.shape.target).length());
+            checked += 1;
+        }
+    }
+    checked
 }

@@ -1,0 +1,329 @@
+//! The sizing field of adaptive remeshing (REMESH.md, after Narain et al. 2012): per face a
+//! symmetric 2x2 metric M in material space, an edge u being short enough when u^T M u <= 1.
+
+use glam::{DMat2, DVec2, DVec3};
+
+use super::RemeshParams;
+use crate::physics::hinge::dihedral_f64;
+
+/// One face's geometry: material-space and world-space corners.
+#[derive(Clone, Copy, Debug)]
+pub struct FaceGeometry {
+    pub uv: [DVec2; 3],
+    pub x: [DVec3; 3],
+}
+
+impl FaceGeometry {
+    /// Material-space edge matrix Dm = [u1 - u0, u2 - u0].
+    pub fn dm(&self) -> DMat2 {
+        DMat2::from_cols(self.uv[1] - self.uv[0], self.uv[2] - self.uv[0])
+    }
+
+    /// Signed material-space area.
+    pub fn area(&self) -> f64 {
+        0.5 * self.dm().determinant()
+    }
+
+    /// Gradient of a per-vertex 3-vector field over the face: [w1 - w0, w2 - w0] Dm^-1 (3x2,
+    /// as two columns).
+    fn gradient(&self, w: [DVec3; 3]) -> [DVec3; 2] {
+        let inv = self.dm().inverse();
+        let (a, b) = (w[1] - w[0], w[2] - w[0]);
+        [a * inv.x_axis.x + b * inv.x_axis.y, a * inv.y_axis.x + b * inv.y_axis.y]
+    }
+}
+
+/// G^T G for a 3x2 matrix G given by its columns.
+fn gram(g: [DVec3; 2]) -> DMat2 {
+    let off = g[0].dot(g[1]);
+    DMat2::from_cols(DVec2::new(g[0].length_squared(), off), DVec2::new(off, g[1].length_squared()))
+}
+
+/// Eigen-decomposition of a symmetric 2x2 matrix: (eigenvalues ascending, unit eigenvector of
+/// the first).
+pub fn sym_eigen(m: DMat2) -> ([f64; 2], DVec2) {
+    let (a, b, d) = (m.x_axis.x, 0.5 * (m.x_axis.y + m.y_axis.x), m.y_axis.y);
+    let mean = 0.5 * (a + d);
+    let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    let (lo, hi) = (mean - r, mean + r);
+    // Eigenvector of lo: (b, lo - a) or (lo - d, b), whichever is better conditioned.
+    let v1 = DVec2::new(b, lo - a);
+    let v2 = DVec2::new(lo - d, b);
+    let v = if v1.length_squared() >= v2.length_squared() { v1 } else { v2 };
+    let v = if v.length_squared() > 0.0 { v.normalize() } else { DVec2::X };
+    ([lo, hi], v)
+}
+
+/// The symmetric matrix with eigenvalues `l` on the eigenvectors (v, perp v).
+fn from_eigen(l: [f64; 2], v: DVec2) -> DMat2 {
+    let p = v.perp();
+    let outer = |u: DVec2| DMat2::from_cols(u * u.x, u * u.y);
+    outer(v) * l[0] + outer(p) * l[1]
+}
+
+/// Applies f to the eigenvalues of a symmetric matrix.
+fn map_eigen(m: DMat2, f: impl Fn(f64) -> f64) -> DMat2 {
+    let (l, v) = sym_eigen(m);
+    from_eigen([f(l[0]), f(l[1])], v)
+}
+
+/// A symmetric 2x2 matrix as a disk in the plane ((a - d) / 2, b) with radius (a + d) / 2:
+/// B - A is positive semidefinite exactly when disk(B) contains disk(A).
+#[derive(Clone, Copy, Debug)]
+struct Disk {
+    c: DVec2,
+    r: f64,
+}
+
+impl Disk {
+    fn of(m: DMat2) -> Disk {
+        let (a, b, d) = (m.x_axis.x, 0.5 * (m.x_axis.y + m.y_axis.x), m.y_axis.y);
+        Disk { c: DVec2::new(0.5 * (a - d), b), r: 0.5 * (a + d) }
+    }
+
+    fn matrix(self) -> DMat2 {
+        let (p, b, m) = (self.c.x, self.c.y, self.r);
+        DMat2::from_cols(DVec2::new(m + p, b), DVec2::new(b, m - p))
+    }
+
+    fn contains(self, o: Disk) -> bool {
+        self.c.distance(o.c) + o.r <= self.r * (1.0 + 1e-12) + 1e-300
+    }
+
+    /// The smallest disk containing both.
+    fn enclose(self, o: Disk) -> Disk {
+        if self.contains(o) {
+            return self;
+        }
+        if o.contains(self) {
+            return o;
+        }
+        let d = self.c.distance(o.c);
+        let r = 0.5 * (d + self.r + o.r);
+        let c = self.c + (o.c - self.c) * ((r - self.r) / d);
+        Disk { c, r }
+    }
+}
+
+/// A "tensor max" of PSD metrics: a PSD matrix that dominates every term (the smallest such
+/// for two terms; for more, the terms are enclosed one at a time, which may exceed the smallest
+/// by a little and so refines slightly more, never less).
+pub fn tensor_max(terms: &[DMat2]) -> DMat2 {
+    let mut iter = terms.iter().map(|&m| Disk::of(m));
+    let Some(first) = iter.next() else { return DMat2::ZERO };
+    iter.fold(first, Disk::enclose).matrix()
+}
+
+/// Clamps a metric (REMESH.md): eigenvalues into [1/size_max^2, 1/size_min^2], and each at
+/// least aspect_min^2 times the largest. A non-finite metric asks for the finest size.
+pub fn clamp(m: DMat2, p: &RemeshParams) -> DMat2 {
+    let (lo, hi) = (1.0 / (p.size_max * p.size_max), 1.0 / (p.size_min * p.size_min));
+    if !m.is_finite() {
+        return DMat2::IDENTITY * hi;
+    }
+    let (l, v) = sym_eigen(m);
+    let l = l.map(|x| x.clamp(lo, hi));
+    let floor = p.aspect_min * p.aspect_min * l[1];
+    from_eigen([l[0].max(floor), l[1].max(floor)], v)
+}
+
+/// Curvature operator of a face (REMESH.md): S = -(1/area) sum_e 1/2 theta_e |e| t_e t_e^T over
+/// its edges, theta_e the dihedral angle (0 on the boundary), t_e the unit in-plane normal.
+pub fn curvature(face: &FaceGeometry, theta: [f64; 3]) -> DMat2 {
+    let area = face.area().abs();
+    let mut s = DMat2::ZERO;
+    for (k, angle) in theta.iter().enumerate() {
+        let e = face.uv[(k + 1) % 3] - face.uv[k];
+        let len = e.length();
+        if len == 0.0 {
+            continue;
+        }
+        let t = e.perp() / len;
+        s += DMat2::from_cols(t * t.x, t * t.y) * (0.5 * angle * len);
+    }
+    s * (-1.0 / area)
+}
+
+/// Compression term (REMESH.md): with e = F^T F - I and N the normal gradient,
+/// pos(-e + ssqrt(e^T e - 4 c^2 adj(N^T N))) / (2 c^2); max(-e, 0) / c^2 without curvature.
+pub fn compression(e: DMat2, normal_gram: DMat2, c: f64) -> DMat2 {
+    let adj = DMat2::from_cols(
+        DVec2::new(normal_gram.y_axis.y, -normal_gram.x_axis.y),
+        DVec2::new(-normal_gram.y_axis.x, normal_gram.x_axis.x),
+    );
+    let d = e.transpose() * e - adj * (4.0 * c * c);
+    let root = map_eigen(d, |l| l.signum() * l.abs().sqrt());
+    map_eigen(root - e, |l| l.max(0.0)) * (1.0 / (2.0 * c * c))
+}
+
+/// The unclamped metric of one face: curvature (dihedral and normal gradient), compression and,
+/// when `velocity` is given, the velocity gradient, combined by `tensor_max`.
+pub fn face_metric(
+    face: &FaceGeometry,
+    theta: [f64; 3],
+    normals: [DVec3; 3],
+    velocity: Option<[DVec3; 3]>,
+    p: &RemeshParams,
+) -> DMat2 {
+    let inv_angle2 = 1.0 / (p.refine_angle * p.refine_angle);
+    let s = curvature(face, theta);
+    let n_gram = gram(face.gradient(normals));
+    let f = face.gradient(face.x);
+    let strain = gram(f) - DMat2::IDENTITY;
+    let mut terms =
+        vec![s.transpose() * s * inv_angle2, n_gram * inv_angle2, compression(strain, n_gram, p.refine_compression)];
+    if let (Some(v), Some(rv)) = (velocity, p.refine_velocity) {
+        terms.push(gram(face.gradient(v)) * (1.0 / (rv * rv)));
+    }
+    tensor_max(&terms)
+}
+
+/// Per-vertex metrics for a surface (REMESH.md): each face's clamped metric, then the
+/// material-area-weighted mean over a vertex's faces.
+pub fn vertex_sizing(
+    uv: &[DVec2],
+    x: &[DVec3],
+    velocity: Option<&[DVec3]>,
+    faces: &[[u32; 3]],
+    p: &RemeshParams,
+) -> Vec<DMat2> {
+    let normals = vertex_normals(x, faces);
+    let mut theta = vec![[0.0f64; 3]; faces.len()];
+    for e in crate::mesh::edges(faces).iter().filter(|e| e.is_interior()) {
+        let q = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]].map(|i| x[i as usize]);
+        let angle = dihedral_f64(&q);
+        for side in 0..2 {
+            let f = faces[e.faces[side] as usize];
+            let k = (0..3).find(|&k| {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                (a, b) == (e.v[0], e.v[1]) || (a, b) == (e.v[1], e.v[0])
+            });
+            if let Some(k) = k {
+                theta[e.faces[side] as usize][k] = angle;
+            }
+        }
+    }
+    let mut sum = vec![DMat2::ZERO; uv.len()];
+    let mut weight = vec![0.0; uv.len()];
+    for (fi, f) in faces.iter().enumerate() {
+        let geo = FaceGeometry { uv: f.map(|i| uv[i as usize]), x: f.map(|i| x[i as usize]) };
+        let area = geo.area().abs();
+        if area == 0.0 {
+            continue;
+        }
+        let vel = velocity.map(|v| f.map(|i| v[i as usize]));
+        let m = clamp(face_metric(&geo, theta[fi], f.map(|i| normals[i as usize]), vel, p), p);
+        for &v in f {
+            sum[v as usize] += m * area;
+            weight[v as usize] += area;
+        }
+    }
+    sum.iter().zip(&weight).map(|(m, w)| if *w > 0.0 { *m * (1.0 / w) } else { DMat2::ZERO }).collect()
+}
+
+/// Area-weighted unit vertex normals.
+pub fn vertex_normals(x: &[DVec3], faces: &[[u32; 3]]) -> Vec<DVec3> {
+    let mut n = vec![DVec3::ZERO; x.len()];
+    for f in faces {
+        let p = f.map(|i| x[i as usize]);
+        let fnorm = (p[1] - p[0]).cross(p[2] - p[0]);
+        for &v in f {
+            n[v as usize] += fnorm;
+        }
+    }
+    n.iter().map(|v| v.normalize_or_zero()).collect()
+}
+
+/// The metric length of a material-space edge u between vertices with metrics ma and mb.
+pub fn edge_size(u: DVec2, ma: DMat2, mb: DMat2) -> f64 {
+    (0.5 * (u.dot(ma * u) + u.dot(mb * u))).max(0.0).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> RemeshParams {
+        RemeshParams {
+            size_min: 0.01,
+            size_max: 1.0,
+            aspect_min: 0.2,
+            refine_angle: 0.3,
+            refine_compression: 0.01,
+            refine_velocity: None,
+        }
+    }
+
+    fn close(a: DMat2, b: DMat2, tol: f64) -> bool {
+        (a - b).to_cols_array().iter().all(|d| d.abs() <= tol)
+    }
+
+    #[test]
+    fn tensor_max_dominates_every_term_and_is_exact_for_two() {
+        let a = DMat2::from_cols(DVec2::new(4.0, 0.0), DVec2::new(0.0, 1.0));
+        let b = DMat2::from_cols(DVec2::new(1.0, 0.0), DVec2::new(0.0, 4.0));
+        let m = tensor_max(&[a, b]);
+        assert!(close(m, DMat2::IDENTITY * 4.0, 1e-12), "{m:?}");
+        let c = DMat2::from_cols(DVec2::new(2.0, 1.5), DVec2::new(1.5, 2.0));
+        let m = tensor_max(&[a, b, c, DMat2::ZERO]);
+        for t in [a, b, c] {
+            let (l, _) = sym_eigen(m - t);
+            assert!(l[0] >= -1e-12, "{m:?} does not dominate {t:?}");
+        }
+        // A dominated term changes nothing.
+        assert!(close(tensor_max(&[a, a * 0.5]), a, 1e-12));
+    }
+
+    #[test]
+    fn clamp_bounds_sizes_and_aspect_and_refuses_nan() {
+        let p = params();
+        let m = clamp(DMat2::from_cols(DVec2::new(1e9, 0.0), DVec2::new(0.0, 0.0)), &p);
+        let (l, _) = sym_eigen(m);
+        assert!((l[1] - 1e4).abs() < 1e-6, "largest at 1/size_min^2: {l:?}");
+        assert!((l[0] - 0.04 * 1e4).abs() < 1e-6, "aspect floor: {l:?}");
+        let m = clamp(DMat2::ZERO, &p);
+        assert!(close(m, DMat2::IDENTITY, 1e-12), "flat and unstrained: size_max");
+        let m = clamp(DMat2::from_cols(DVec2::new(f64::NAN, 0.0), DVec2::ZERO), &p);
+        assert!(m.is_finite() && close(m, DMat2::IDENTITY * 1e4, 1e-9));
+    }
+
+    #[test]
+    fn compression_without_curvature_is_the_compressed_strain_over_c_squared() {
+        let e = DMat2::from_cols(DVec2::new(-0.19, 0.0), DVec2::new(0.0, 0.05));
+        let m = compression(e, DMat2::ZERO, 0.01);
+        assert!(close(m, DMat2::from_cols(DVec2::new(0.19e4, 0.0), DVec2::ZERO), 1e-8), "{m:?}");
+    }
+
+    #[test]
+    fn a_bent_sheet_asks_for_edges_of_refine_angle_over_curvature() {
+        // A strip rolled onto a cylinder of radius r: the normal turns by |u| / r along u = x.
+        let r = 2.0;
+        let (nx, ny, h) = (40, 4, 0.05);
+        let mut uv = Vec::new();
+        for j in 0..=ny {
+            for i in 0..=nx {
+                uv.push(DVec2::new(i as f64 * h, j as f64 * h));
+            }
+        }
+        let x: Vec<DVec3> =
+            uv.iter().map(|u| DVec3::new(r * (u.x / r).sin(), u.y, r * (1.0 - (u.x / r).cos()))).collect();
+        let mut faces = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let v = (j * (nx + 1) + i) as u32;
+                let w = v + nx as u32 + 1;
+                faces.push([v, v + 1, w + 1]);
+                faces.push([v, w + 1, w]);
+            }
+        }
+        let p = params();
+        let m = vertex_sizing(&uv, &x, None, &faces, &p);
+        let mid = m[(2 * (nx + 1) + nx / 2) as usize];
+        // Along the curvature 1 / (r refine_angle)^2; across it only the aspect floor.
+        let along = DVec2::X.dot(mid * DVec2::X);
+        let expect = 1.0 / (r * p.refine_angle).powi(2);
+        assert!((along / expect - 1.0).abs() < 0.05, "{along} against {expect}");
+        let across = DVec2::Y.dot(mid * DVec2::Y);
+        assert!(across <= 1.01 * (p.aspect_min * p.aspect_min * along).max(1.0), "{across}");
+    }
+}

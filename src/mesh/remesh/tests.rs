@@ -1,0 +1,174 @@
+use glam::{DVec2, DVec3};
+
+use super::*;
+use crate::mesh::{check_surface, grid, GridPattern, SurfaceMesh};
+
+fn params(size_min: f64, size_max: f64) -> RemeshParams {
+    RemeshParams {
+        size_min,
+        size_max,
+        aspect_min: 0.2,
+        refine_angle: 0.3,
+        refine_compression: 0.01,
+        refine_velocity: None,
+    }
+}
+
+/// A flat unit sheet of n x n cells, positions mapped by `deform`; the first `fixed` vertices
+/// (by index) held.
+fn sheet(n: u32, pattern: GridPattern, deform: impl Fn(DVec2) -> DVec3) -> (Vec<RemeshVertex>, Vec<[u32; 3]>) {
+    let m = grid(DVec2::ONE, (n, n), pattern, 0.0);
+    let verts = m
+        .uv
+        .iter()
+        .zip(&m.rest)
+        .map(|(&uv, &rest)| RemeshVertex { uv, x: deform(uv), v: DVec3::ZERO, rest, fixed: [false; 3], origin: None })
+        .collect();
+    (verts, m.faces)
+}
+
+fn flat(uv: DVec2) -> DVec3 {
+    uv.extend(0.0)
+}
+
+/// The output is a valid manifold mesh, every face positively oriented in material space, and
+/// its material area that of the input.
+fn check(out: &Remeshed, area: f64) {
+    let m = SurfaceMesh {
+        rest: out.vertices.iter().map(|v| v.rest).collect(),
+        uv: out.vertices.iter().map(|v| v.uv).collect(),
+        faces: out.faces.clone(),
+    };
+    check_surface(&m).expect("a valid mesh");
+    let mut total = 0.0;
+    for f in &out.faces {
+        let u = f.map(|i| out.vertices[i as usize].uv);
+        let a = 0.5 * (u[1] - u[0]).perp_dot(u[2] - u[0]);
+        assert!(a > 0.0, "an inverted or empty face {f:?}: {a}");
+        total += a;
+    }
+    assert!((total - area).abs() < 1e-12, "material area {total} against {area}");
+}
+
+fn edge_lengths(out: &Remeshed) -> Vec<f64> {
+    crate::mesh::edges(&out.faces)
+        .iter()
+        .map(|e| (out.vertices[e.v[1] as usize].uv - out.vertices[e.v[0] as usize].uv).length())
+        .collect()
+}
+
+#[test]
+fn a_coarse_sheet_is_refined_to_size_max_and_no_further() {
+    let (v, f) = sheet(4, GridPattern::Equilateral, flat);
+    let p = params(0.01, 0.1);
+    let out = remesh(&v, &f, &p);
+    check(&out, 1.0);
+    let lengths = edge_lengths(&out);
+    let longest = lengths.iter().fold(0.0f64, |a, &b| a.max(b));
+    let shortest = lengths.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+    assert!(longest <= 0.1 * (1.0 + 1e-9), "every edge within size_max: {longest}");
+    assert!(shortest > 0.02, "no edge split needlessly: {shortest}");
+    assert!(out.stats.splits > 0);
+    // The input vertices are all still there, in order, with their origin.
+    for (i, v) in v.iter().enumerate() {
+        assert_eq!(out.vertices[i].origin, Some(i as u32));
+        assert_eq!(out.vertices[i].uv, v.uv);
+    }
+    // Deterministic.
+    let again = remesh(&v, &f, &p);
+    assert_eq!(again.faces, out.faces);
+    assert_eq!(again.vertices, out.vertices);
+}
+
+#[test]
+fn a_fine_flat_sheet_is_coarsened_keeping_corners_boundary_and_handles() {
+    let (mut v, f) = sheet(40, GridPattern::Equilateral, flat);
+    let held = v.len() / 2;
+    v[held].fixed = [true; 3];
+    let out = remesh(&v, &f, &params(0.01, 0.25));
+    check(&out, 1.0);
+    assert!(out.stats.collapses > 1000, "{:?}", out.stats);
+    assert!(out.vertices.len() < v.len() / 4, "{} of {} vertices left", out.vertices.len(), v.len());
+    assert!(out.vertices.iter().any(|o| o.origin == Some(held as u32)), "the held vertex stays");
+    for corner in [DVec2::ZERO, DVec2::X, DVec2::Y, DVec2::ONE] {
+        assert!(out.vertices.iter().any(|o| o.uv.distance(corner) < 1e-12), "corner {corner} kept");
+    }
+    // Boundary vertices only slid along the boundary: the square is still a square.
+    let on_boundary = |u: DVec2| u.x.min(u.y).abs() < 1e-12 || (u.x.max(u.y) - 1.0).abs() < 1e-12;
+    for e in crate::mesh::edges(&out.faces).iter().filter(|e| !e.is_interior()) {
+        for k in e.v {
+            assert!(on_boundary(out.vertices[k as usize].uv));
+        }
+    }
+    let lengths = edge_lengths(&out);
+    assert!(lengths.iter().all(|&l| l <= 0.25 * 1.0001), "no collapse made an edge too long");
+}
+
+#[test]
+fn compression_refines_where_the_sheet_is_compressed() {
+    // The left half shortened by 10 % along x: REMESH.md's compression term there.
+    let squeeze = |u: DVec2| {
+        let x = if u.x < 0.5 { 0.9 * u.x } else { 0.45 + (u.x - 0.5) };
+        DVec3::new(x, u.y, 0.0)
+    };
+    let (v, f) = sheet(10, GridPattern::Equilateral, squeeze);
+    let mut p = params(0.005, 0.2);
+    p.refine_compression = 0.005;
+    let out = remesh(&v, &f, &p);
+    check(&out, 1.0);
+    let (mut left, mut right) = (0, 0);
+    for o in &out.vertices {
+        if o.uv.x < 0.45 {
+            left += 1;
+        } else if o.uv.x > 0.55 {
+            right += 1;
+        }
+    }
+    assert!(left > 4 * right, "{left} vertices on the compressed half, {right} on the other");
+    // Compressed along x only: the left edges are short along x, longer along y.
+    let metric = out.sizing[out.vertices.iter().position(|o| o.uv.x < 0.3 && o.uv.y > 0.3).unwrap()];
+    assert!(metric.x_axis.x > 4.0 * metric.y_axis.y, "{metric:?}");
+}
+
+#[test]
+fn a_non_finite_metric_stops_at_size_min() {
+    let (mut v, f) = sheet(4, GridPattern::Equilateral, flat);
+    v[7].x = DVec3::NAN;
+    let p = params(0.05, 0.5);
+    let out = remesh(&v, &f, &p);
+    check(&out, 1.0);
+    let shortest = edge_lengths(&out).into_iter().fold(f64::INFINITY, f64::min);
+    assert!(shortest >= 0.5 * p.size_min * 0.999, "{shortest}");
+    assert!(out.vertices.len() < 2000, "{}", out.vertices.len());
+}
+
+#[test]
+fn a_sliver_strip_is_repaired_without_inverted_faces() {
+    // 200 x 1 cells over a 1 x 0.005 strip (aspect ratio 1e-3 cells would be 1 x 1e-3).
+    let m = grid(DVec2::new(1.0, 0.001), (1, 1), GridPattern::RightTriangle, 0.0);
+    let verts: Vec<RemeshVertex> = m
+        .uv
+        .iter()
+        .map(|&uv| RemeshVertex { uv, x: flat(uv), v: DVec3::ZERO, rest: flat(uv), fixed: [false; 3], origin: None })
+        .collect();
+    let out = remesh(&verts, &m.faces, &params(0.0005, 0.01));
+    check(&out, 0.001);
+    assert!(out.vertices.len() > 200, "split along the strip: {}", out.vertices.len());
+}
+
+#[test]
+fn remesh_params_refuse_bad_values_naming_the_field() {
+    let good = params(0.01, 0.1);
+    assert!(good.check().is_ok());
+    let cases: [(RemeshParams, &str); 6] = [
+        (RemeshParams { size_min: 0.0, ..good }, "size_min"),
+        (RemeshParams { size_min: 0.2, ..good }, "size_min"),
+        (RemeshParams { aspect_min: 0.0, ..good }, "aspect_min"),
+        (RemeshParams { aspect_min: 1.5, ..good }, "aspect_min"),
+        (RemeshParams { refine_angle: -1.0, ..good }, "refine_angle"),
+        (RemeshParams { refine_compression: f64::NAN, ..good }, "refine_compression"),
+    ];
+    for (p, field) in cases {
+        assert_eq!(p.check().unwrap_err().0, field, "{p:?}");
+    }
+}

@@ -1,0 +1,130 @@
+//! Remesh (ARCHITECTURE.md 2, REMESH.md): every `every` frames each shell layer with
+//! `RemeshSettings` is copied out, remeshed in material space (`skinsim::mesh::remesh`), and
+//! written back. Surviving vertices, faces and edges keep their entities; new ones are spawned
+//! (without rest data: PropertyResample fills it in), removed ones despawned, and the layer's
+//! topology epoch bumped so that kernels, the solver pattern and the render mesh follow.
+
+use std::collections::HashMap;
+
+use bevy_ecs::prelude::*;
+use skinsim::mesh::remesh::{remesh, RemeshVertex};
+use skinsim::model::*;
+
+pub fn remesh_layers(world: &mut World) {
+    let frame = world.resource::<SimClock>().frame;
+    let mut layers: Vec<(Entity, RemeshSettings)> = world
+        .query::<(Entity, &RemeshSettings)>()
+        .iter(world)
+        .filter(|(_, r)| frame.is_multiple_of(r.every))
+        .map(|(e, r)| (e, *r))
+        .collect();
+    layers.sort_by_key(|(e, _)| e.to_bits());
+    for (layer, settings) in layers {
+        remesh_layer(world, layer, &settings, frame);
+    }
+}
+
+/// Sorted vertex entities: the identity of a face or an edge across a remesh.
+fn key<const N: usize>(mut v: [Entity; N]) -> [Entity; N] {
+    v.sort_unstable();
+    v
+}
+
+fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, frame: u32) {
+    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
+    let old_faces: Vec<Entity> = world.get::<LayerFaces>(layer).map_or(Vec::new(), |f| f.entities().to_vec());
+    let old_edges: Vec<Entity> = world.get::<LayerEdges>(layer).map_or(Vec::new(), |e| e.entities().to_vec());
+    let index: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
+    let input: Vec<RemeshVertex> = verts
+        .iter()
+        .map(|&v| {
+            let e = world.entity(v);
+            RemeshVertex {
+                uv: e.get::<MaterialPos>().expect("shell vertex").0,
+                x: e.get::<Position>().expect("vertex").0,
+                v: e.get::<Velocity>().map_or(glam::DVec3::ZERO, |v| v.0),
+                rest: e.get::<RestPos>().expect("vertex").0,
+                fixed: e.get::<Prescribed>().map_or([false; 3], |p| p.0),
+                origin: None,
+            }
+        })
+        .collect();
+    let tris: Vec<[Entity; 3]> = old_faces.iter().map(|&f| world.get::<FaceVerts>(f).expect("face").0).collect();
+    let faces: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| index[&v])).collect();
+    let out = remesh(&input, &faces, &settings.params);
+    let changed = out.stats.splits + out.stats.collapses + out.stats.flips > 0;
+    let report = RemeshReport {
+        frame: frame as u64,
+        stats: out.stats,
+        vertices: out.vertices.len() as u32,
+        faces: out.faces.len() as u32,
+    };
+    world.entity_mut(layer).insert(report);
+    if !changed {
+        return;
+    }
+    // Vertices: survivors keep their entity, split midpoints are spawned, the rest despawned.
+    let mut alive = vec![false; verts.len()];
+    let ent: Vec<Entity> = out
+        .vertices
+        .iter()
+        .map(|v| match v.origin {
+            Some(i) => {
+                alive[i as usize] = true;
+                verts[i as usize]
+            }
+            None => world
+                .spawn((
+                    VertexOf(layer),
+                    MaterialPos(v.uv),
+                    RestPos(v.rest),
+                    Position(v.x),
+                    Velocity(v.v),
+                    Mass(0.0),
+                    Prescribed(v.fixed),
+                ))
+                .id(),
+        })
+        .collect();
+    // Faces by vertex set.
+    let mut by_key: HashMap<[Entity; 3], Entity> = tris.iter().zip(&old_faces).map(|(t, &f)| (key(*t), f)).collect();
+    for f in &out.faces {
+        let tri = f.map(|i| ent[i as usize]);
+        if by_key.remove(&key(tri)).is_none() {
+            world.spawn((FaceVerts(tri), FaceOf(layer)));
+        }
+    }
+    // Edges by endpoints and, for hinges, the opposite vertices: a changed quad gets a new edge.
+    let quad = |e: &skinsim::mesh::EdgeInfo| {
+        let opposite = e.is_interior().then(|| key(e.opposite.map(|i| ent[i as usize])));
+        (key(e.v.map(|i| ent[i as usize])), opposite)
+    };
+    let mut old: HashMap<([Entity; 2], Option<[Entity; 2]>), Entity> = old_edges
+        .iter()
+        .map(|&e| {
+            let r = world.entity(e);
+            let ends = key(r.get::<EdgeVerts>().expect("edge").0);
+            let opposite = r.get::<Hinge>().map(|h| key(h.opposite)).or(r.get::<EdgeOpposite>().map(|o| key(o.0)));
+            ((ends, opposite), e)
+        })
+        .collect();
+    let bending = world.get::<Bending>(layer).is_some();
+    for e in skinsim::mesh::edges(&out.faces) {
+        let (ends, opposite) = quad(&e);
+        let id = if bending { (ends, opposite) } else { (ends, None) };
+        if old.remove(&id).is_some() {
+            continue;
+        }
+        let mut spawned = world.spawn((EdgeVerts(e.v.map(|i| ent[i as usize])), EdgeOf(layer)));
+        if let (true, true) = (bending, e.is_interior()) {
+            spawned.insert(EdgeOpposite(e.opposite.map(|i| ent[i as usize])));
+        }
+    }
+    for entity in by_key.into_values().chain(old.into_values()) {
+        world.despawn(entity);
+    }
+    for (v, _) in verts.iter().zip(&alive).filter(|(_, a)| !**a) {
+        world.despawn(*v);
+    }
+    world.get_mut::<TopologyEpoch>(layer).expect("layer").0 += 1;
+}
