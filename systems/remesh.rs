@@ -15,7 +15,8 @@ pub fn remesh_layers(world: &mut World) {
     let mut layers: Vec<(Entity, RemeshSettings)> = world
         .query::<(Entity, &RemeshSettings)>()
         .iter(world)
-        .filter(|(_, r)| frame.is_multiple_of(r.every))
+        // (frames count from 1: remesh at the first and every `every`-th after it)
+        .filter(|(_, r)| (frame.max(1) - 1).is_multiple_of(r.every))
         .map(|(e, r)| (e, *r))
         .collect();
     layers.sort_by_key(|(e, _)| e.to_bits());

@@ -48,6 +48,8 @@ pub fn solve_patches(
                 cg_iterations: o.cg_iterations,
                 constraints,
                 constraint_violation: o.constraint_violation,
+                start_energy: o.start_energy,
+                start_violation: o.start_violation,
                 inverted,
                 anchors,
             }),

@@ -6,7 +6,7 @@ use serde::Serialize;
 /// Simulation clock: the frame being computed and its time.
 #[derive(Resource, Clone, Copy, Debug, Default)]
 pub struct SimClock {
-    /// Frame index being computed (frame 0 is the first solved frame).
+    /// Frame index being computed: the first solved frame is 1 (0 is the initial state).
     pub frame: u32,
     /// Time at the end of this frame (s).
     pub time: f64,
@@ -113,6 +113,10 @@ pub struct PatchReport {
     /// LK14 kernels: constraint rows and the largest violation relative to the patch size.
     pub constraints: usize,
     pub constraint_violation: f64,
+    /// Energy (J) and constraint violation at the frame's first iterate, after the drivers and
+    /// any remesh: a remesh pop is the jump from the previous frame's `energy`.
+    pub start_energy: f64,
+    pub start_violation: f64,
     /// Tetrahedra with non-positive volume at the end of the frame (models that allow inversion).
     pub inverted: usize,
     /// Time inside the solve: element assembly, factorization, line search (ms).

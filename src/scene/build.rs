@@ -736,6 +736,7 @@ impl Builder {
             refine_angle: r.refine_angle,
             refine_compression: r.refine_compression,
             refine_velocity: r.refine_velocity,
+            curved_splits: r.curved_splits,
         };
         stated.check().map_err(|(field, message)| self.err(format!("{at}.{field}"), message))?;
         let params = crate::mesh::remesh::RemeshParams {

@@ -309,6 +309,14 @@ pub struct RemeshSpec {
     /// Remesh every this many frames.
     #[serde(default = "default_every")]
     pub every: u32,
+    /// Split midpoints on the curved surface (default); false puts them on the straight edge
+    /// (only to measure the energy jump the curved placement avoids).
+    #[serde(default = "default_curved_splits")]
+    pub curved_splits: bool,
+}
+
+fn default_curved_splits() -> bool {
+    true
 }
 
 fn default_aspect_min() -> f64 {

@@ -77,6 +77,9 @@ pub(super) fn newton_kkt(
         out.parts = parts;
         out.residual = residual;
         out.constraint_violation = violation;
+        if history.is_empty() {
+            (out.start_energy, out.start_violation) = (phi, violation);
+        }
         if residual < ADAPTIVE_SWITCH {
             projecting = false;
         }

@@ -43,6 +43,10 @@ pub struct FrameOutcome {
     pub cg_iterations: u32,
     /// Largest kernel-constraint violation, relative to the patch size (0 without kernels).
     pub constraint_violation: f64,
+    /// Energy and constraint violation at the frame's first iterate: after the drivers and any
+    /// remesh, before the solve (a remesh "pop" shows as a jump from the previous frame's end).
+    pub start_energy: f64,
+    pub start_violation: f64,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
     /// factorization and triangular solves, line-search energy evaluations.
     pub counters: SolveCounters,
@@ -234,6 +238,9 @@ fn newton(
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;
+        if history.is_empty() && out.escapes == 0 {
+            out.start_energy = phi;
+        }
         if residual < ADAPTIVE_SWITCH {
             projecting = false;
         }

@@ -26,6 +26,9 @@ pub struct RemeshParams {
     pub refine_compression: f64,
     /// Velocity-gradient term (m/s), dynamic scenes only.
     pub refine_velocity: Option<f64>,
+    /// Split midpoints placed on the curved surface through the ends' normals (else on the
+    /// straight edge; off only to measure the pop it avoids).
+    pub curved_splits: bool,
 }
 
 impl RemeshParams {

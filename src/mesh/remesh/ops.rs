@@ -33,6 +33,8 @@ pub(super) struct WorkMesh<'a> {
     p: &'a RemeshParams,
     verts: Vec<RemeshVertex>,
     sizing: Vec<DMat2>,
+    /// Unit vertex normals (world), for curved split midpoints.
+    normals: Vec<DVec3>,
     v_alive: Vec<bool>,
     boundary: Vec<bool>,
     /// Boundary corners: never removed.
@@ -65,10 +67,13 @@ impl<'a> WorkMesh<'a> {
                 vf[v as usize].push(fi as u32);
             }
         }
+        let x: Vec<DVec3> = verts.iter().map(|v| v.x).collect();
+        let normals = super::sizing::vertex_normals(&x, faces);
         let mut mesh = WorkMesh {
             p,
             verts,
             sizing,
+            normals,
             v_alive: vec![true; n],
             boundary: vec![false; n],
             corner: vec![false; n],
@@ -180,17 +185,24 @@ impl<'a> WorkMesh<'a> {
     fn split(&mut self, a: u32, b: u32) -> u32 {
         let (ef, count) = self.edge_faces(a, b);
         let (va, vb) = (self.verts[a as usize], self.verts[b as usize]);
+        let (na, nb) = (self.normals[a as usize], self.normals[b as usize]);
         let m = self.verts.len() as u32;
-        // State transfer: the mean of the ends (REMESH.md "Split").
+        // State transfer: the mean of the ends (REMESH.md "Split"), the position lifted onto
+        // the curved surface the two normals describe: the midpoint of the cubic Bezier edge of
+        // a PN triangle (Vlachos et al. 2001), which recovers a circular arc's sagitta to
+        // second order in the turning angle.
+        let d = vb.x - va.x;
+        let lift = if self.p.curved_splits { -(d.dot(na) * na - d.dot(nb) * nb) / 8.0 } else { DVec3::ZERO };
         self.verts.push(RemeshVertex {
             uv: 0.5 * (va.uv + vb.uv),
-            x: 0.5 * (va.x + vb.x),
+            x: 0.5 * (va.x + vb.x) + lift,
             v: 0.5 * (va.v + vb.v),
             rest: 0.5 * (va.rest + vb.rest),
             fixed: std::array::from_fn(|k| va.fixed[k] && vb.fixed[k]),
             origin: None,
         });
         self.sizing.push(0.5 * (self.sizing[a as usize] + self.sizing[b as usize]));
+        self.normals.push((na + nb).normalize_or_zero());
         self.v_alive.push(true);
         self.boundary.push(count == 1);
         self.corner.push(false);

@@ -251,6 +251,7 @@ mod tests {
             refine_angle: 0.3,
             refine_compression: 0.01,
             refine_velocity: None,
+            curved_splits: true,
         }
     }
 
