@@ -20,10 +20,21 @@ pub fn remesh_layers(world: &mut World) {
         .map(|(e, r)| (e, *r))
         .collect();
     layers.sort_by_key(|(e, _)| e.to_bits());
-    for (layer, settings) in layers {
+    let kernels: Vec<Kernel> = world.query::<&Kernel>().iter(world).copied().collect();
+    for (layer, mut settings) in layers {
+        // A kernel's support must keep enough vertices for its weights to be adjusted (at
+        // least three, not collinear; LK14 4.2.1): edges at most half the smallest radius of a
+        // kernel on this layer. (Measured without the cap: a 1.1 mm kernel radius under a 2 mm
+        // size_max left supports of one or two vertices, and the frame did not converge.)
+        let radius = kernels.iter().filter(|k| k.upper == layer || k.lower == layer).map(|k| k.shape.radius);
+        let p = &mut settings.params;
+        p.size_max = radius.fold(p.size_max, |m, r| m.min(KERNEL_EDGES * r)).max(p.size_min * 1.0001);
         remesh_layer(world, layer, &settings, frame);
     }
 }
+
+/// The longest edge a kernel support allows, relative to the kernel radius.
+const KERNEL_EDGES: f64 = 0.5;
 
 /// Sorted vertex entities: the identity of a face or an edge across a remesh.
 fn key<const N: usize>(mut v: [Entity; N]) -> [Entity; N] {
@@ -55,6 +66,7 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
     let out = remesh(&input, &faces, &settings.params);
     let changed = out.stats.splits + out.stats.collapses + out.stats.flips > 0;
     let report = RemeshReport {
+        size_max: settings.params.size_max,
         frame: frame as u64,
         stats: out.stats,
         vertices: out.vertices.len() as u32,

@@ -150,3 +150,77 @@ fn remesh_jumps_in_energy_and_constraints() {
     assert!(pop_curved.abs() < 0.5 * pop_straight.abs(), "{pop_curved} against {pop_straight}");
     assert!(jump_adjusted < 0.25 * jump_raw, "{jump_adjusted} against {jump_raw}");
 }
+
+/// The remesh scene with text replacements, loaded as if it sat in `dir`.
+fn variant(dir: &std::path::Path, edits: &[(&str, &str)]) -> skinsim::scene::BuiltScene {
+    let mut text = std::fs::read_to_string(scene_path(SCENE)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from}");
+        text = text.replace(from, to);
+    }
+    skinsim::scene::load_str(&text, &dir.join("scene.ron")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Runs a scene and checks every frame: converged, the constraints held, the layer consistent.
+fn run_checked(scene: &skinsim::scene::BuiltScene) -> Simulation {
+    let mut sim = Simulation::new(scene);
+    let dermis = layer(&mut sim, "dermis");
+    for frame in 1..=scene.scene.frames {
+        let s = sim.step();
+        let p = &s.patches[0];
+        assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
+        assert!(p.constraint_violation < 1e-9, "frame {frame}: {}", p.constraint_violation);
+        check_layer(&mut sim, dermis, 24e-3 * 12e-3);
+    }
+    sim
+}
+
+/// Hard case (issue 5 point 8): remeshing while the base is compressed to half its length.
+#[test]
+fn remeshing_through_compression_to_half() {
+    let scene = variant(&scratch_dir("remesh"), &[("strain: 0.1)", "strain: 0.5)")]);
+    let mut sim = run_checked(&scene);
+    let dermis = layer(&mut sim, "dermis");
+    let report = *sim.world.get::<RemeshReport>(dermis).unwrap();
+    println!("compressed to 50 %: {report:?}");
+    assert!(report.vertices > 1000, "the folds refined: {report:?}");
+}
+
+/// Hard case: a property map with a sharp step (Young's modulus x1 on the left half, x8 on the
+/// right, across one pixel of 64): new faces sample it, and both sides stay consistent.
+#[test]
+fn remeshing_over_a_sharp_property_step() {
+    let dir = scratch_dir("remesh");
+    let step = image::RgbImage::from_fn(64, 4, |x, _| image::Rgb(if x < 32 { [0, 0, 0] } else { [255, 255, 255] }));
+    step.save(dir.join("step.png")).unwrap();
+    let scene = variant(
+        &dir,
+        &[(
+            "bending: Some((model: Tan)),",
+            r#"bending: Some((model: Tan)), properties: Some((map: Png("step.png"), young: Some((1.0, 8.0)))),"#,
+        )],
+    );
+    let mut sim = run_checked(&scene);
+    let dermis = layer(&mut sim, "dermis");
+    let faces = sim.world.get::<LayerFaces>(dermis).unwrap().entities().to_vec();
+    let scales: Vec<f64> = faces.iter().map(|&f| sim.world.get::<ModulusScale>(f).expect("sampled").0).collect();
+    let (lo, hi) = scales.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &s| (a.min(s), b.max(s)));
+    assert!((lo - 1.0).abs() < 1e-9 && (hi - 8.0).abs() < 1e-9, "both sides sampled: {lo} .. {hi}");
+}
+
+/// Hard case: kernels a coarse mesh would leave with fewer than three vertices (radius 1.3 mm
+/// under a 2 mm size_max). The remesher caps its edges at half the smallest kernel radius on
+/// the layer, so every support can still be adjusted and every frame converges.
+#[test]
+fn small_kernels_keep_adjustable_supports() {
+    let scene = variant(&scratch_dir("remesh"), &[("Constant(8.0)", "Constant(2.2)")]);
+    let mut sim = run_checked(&scene);
+    let dermis = layer(&mut sim, "dermis");
+    let report = *sim.world.get::<RemeshReport>(dermis).unwrap();
+    let mut kernels = sim.world.query::<&Kernel>();
+    let radius = kernels.iter(&sim.world).map(|k| k.shape.radius).fold(f64::INFINITY, f64::min);
+    assert!((report.size_max - 0.5 * radius).abs() < 1e-12, "size_max capped at radius / 2: {report:?}, {radius}");
+    let mut q = sim.world.query::<&KernelWeights>();
+    let states: Vec<_> = q.iter(&sim.world).map(|w| w.adjusted[0]).collect();
+    assert!(states.iter().all(|s| *s == Some(skinsim::coupling::kernels::Adjusted::Centred)), "{states:?}");
+}

@@ -103,6 +103,8 @@ pub struct RemeshSettings {
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct RemeshReport {
     pub frame: u64,
+    /// The size_max used: the scene's, capped by the layer's kernels (m).
+    pub size_max: f64,
     pub stats: crate::mesh::remesh::RemeshStats,
     pub vertices: u32,
     pub faces: u32,
