@@ -34,7 +34,7 @@ pub struct RenderMesh {
 #[derive(Default)]
 pub struct RenderCache(HashMap<Entity, RenderMesh>);
 
-type LayerQ<'a> = (&'a Layer, &'a TopologyEpoch, Option<&'a LayerFaces>, Option<&'a LayerTets>);
+type LayerQ<'a> = (&'a Layer, &'a TopologyEpoch, Option<&'a LayerFaces>, Option<&'a LayerTets>, Has<RemeshSettings>);
 
 #[allow(clippy::too_many_arguments)]
 pub fn log_frame(
@@ -60,7 +60,7 @@ pub fn log_frame(
     ordered.sort_by_key(|(p, _)| p.index);
     for (patch, patch_layers) in ordered {
         for &l in patch_layers.entities() {
-            let Ok((layer, epoch, lf, lt)) = layers.get(l) else { continue };
+            let Ok((layer, epoch, lf, lt, remeshed)) = layers.get(l) else { continue };
             let rm = cache.0.entry(l).or_default();
             if rm.vertices.is_empty() || rm.epoch != epoch.0 {
                 *rm = render_mesh(epoch.0, lf, lt, &faces, &tets, &vertices);
@@ -72,7 +72,12 @@ pub fn log_frame(
                 rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.0 .0).unwrap_or(DVec3::NAN)).collect();
             if let Some(rec) = rec {
                 let path = format!("patches/{}/{}", patch.name, layer.name);
-                log_mesh(rec, &path, rm, &pos);
+                let strain = log_mesh(rec, &path, rm, &pos, remeshed);
+                if remeshed {
+                    let uv: Vec<DVec2> =
+                        rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
+                    log_material_mesh(rec, &format!("material/{}/{}", patch.name, layer.name), rm, &uv, &strain);
+                }
             }
             if let Some(ObjExport(dir)) = obj.as_deref() {
                 let uv: Vec<DVec2> =
@@ -146,21 +151,48 @@ fn render_mesh(
     rm
 }
 
-fn log_mesh(rec: &rerun::RecordingStream, path: &str, rm: &mut RenderMesh, pos: &[DVec3]) {
+/// Logs a layer's mesh coloured by strain; returns the per-vertex strain. The triangles are
+/// static unless the layer is remeshed: then they are logged at every topology change, on the
+/// timeline (static data would shadow every earlier frame's triangles).
+fn log_mesh(rec: &rerun::RecordingStream, path: &str, rm: &mut RenderMesh, pos: &[DVec3], remeshed: bool) -> Vec<f64> {
     let (normals, strain) = shading::normals_and_strain(pos, &rm.tris, &rm.rest_area);
     let f3 = |v: &DVec3| [v.x as f32, v.y as f32, v.z as f32];
     if !rm.logged_topology {
         let indices = rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t));
-        let _ = rec.log_static(path, &rerun::Mesh3D::update_fields().with_triangle_indices(indices));
+        let topology = rerun::Mesh3D::update_fields().with_triangle_indices(indices);
+        let _ = if remeshed { rec.log(path, &topology) } else { rec.log_static(path, &topology) };
         rm.logged_topology = true;
     }
-    let colours = strain.iter().map(|s| {
-        let [r, g, b, a] = shading::strain_colour(*s);
-        rerun::Color::from_unmultiplied_rgba(r, g, b, a)
-    });
     let mesh = rerun::Mesh3D::update_fields()
         .with_vertex_positions(pos.iter().map(f3))
         .with_vertex_normals(normals.iter().map(f3))
-        .with_vertex_colors(colours);
+        .with_vertex_colors(colours(&strain));
     let _ = rec.log(path, &mesh);
+    strain
+}
+
+fn colours(strain: &[f64]) -> Vec<rerun::Color> {
+    strain
+        .iter()
+        .map(|s| {
+            let [r, g, b, a] = shading::strain_colour(*s);
+            rerun::Color::from_unmultiplied_rgba(r, g, b, a)
+        })
+        .collect()
+}
+
+/// A remeshed layer in material space (LK14 fig. 6-4, left and centre): the triangles flat at
+/// z = 0 coloured by strain, and their edges as lines, so the adaptive resolution shows.
+fn log_material_mesh(rec: &rerun::RecordingStream, path: &str, rm: &RenderMesh, uv: &[DVec2], strain: &[f64]) {
+    let p = |u: &DVec2| [u.x as f32, u.y as f32, 0.0];
+    let mesh = rerun::Mesh3D::new(uv.iter().map(p))
+        .with_triangle_indices(rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t)))
+        .with_vertex_colors(colours(strain));
+    let _ = rec.log(path.to_string(), &mesh);
+    let edges: Vec<[[f32; 3]; 2]> =
+        mesh::edges(&rm.tris).iter().map(|e| [p(&uv[e.v[0] as usize]), p(&uv[e.v[1] as usize])]).collect();
+    let _ = rec.log(
+        format!("{path}/edges"),
+        &rerun::LineStrips3D::new(edges).with_colors([rerun::Color::from_rgb(40, 40, 40)]),
+    );
 }

@@ -37,13 +37,29 @@ fn stages_run_in_order_and_only_what_a_scene_declares() {
     let mut sim = Simulation::new(&load("strip_wrinkles.ron"));
     record_stages(&mut sim);
     sim.step();
-    let skipped = [Stage::Log, Stage::ConstraintResample, Stage::ConstraintAdjust, Stage::AnchorWalk];
+    let skipped = [
+        Stage::Remesh,
+        Stage::PropertyResample,
+        Stage::Log,
+        Stage::ConstraintResample,
+        Stage::ConstraintAdjust,
+        Stage::AnchorWalk,
+    ];
     let all: Vec<Stage> = Stage::ALL.iter().copied().filter(|s| !skipped.contains(s)).collect();
     assert_eq!(
         sim.world.resource::<Ran>().0,
         all,
-        "drivers, no kernels, no anchors and no sink: no Log, no constraint stages, no walk"
+        "drivers, no remeshing, no kernels, no anchors and no sink: no Log, no remesh, constraint stages or walk"
     );
+
+    // Remeshing with kernels: Remesh and PropertyResample run after the drivers, before the
+    // kernels are resampled.
+    let mut sim = Simulation::new(&load("lk14/remesh_one_layer_quick.ron"));
+    record_stages(&mut sim);
+    sim.step();
+    let ran = &sim.world.resource::<Ran>().0;
+    let order = [Stage::BlendShapes, Stage::Remesh, Stage::PropertyResample, Stage::ConstraintResample];
+    assert_eq!(ran[..4], order, "{ran:?}");
 
     // Anchors: the walk runs, between the constraint stages and Assemble.
     let mut sim = Simulation::new(&load("kck18/crease_quick.ron"));

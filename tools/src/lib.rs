@@ -2,6 +2,7 @@
 
 pub mod bake;
 pub mod film;
+pub mod lk14_report;
 pub mod report;
 pub mod skin_section;
 pub mod timing;

@@ -72,15 +72,27 @@ enum Command {
         out: PathBuf,
     },
     /// Speed against error (VALIDATION.md F): sweeps the resolution of the wrinkling cases and
-    /// writes speed_error.md, .csv and .svg (time per increment against error, log-log).
+    /// writes speed_error.md, .csv and .svg (H15 cases 7 and 9: time per increment against
+    /// error, log-log) and speed_error_lk14.* (LK14 cases 10 and 11: uniform against adaptive
+    /// meshes, time per frame against energy error).
     Report {
         /// Output folder.
         #[arg(long, default_value = "report")]
         out: PathBuf,
-        /// Only the two coarsest resolutions of each sweep.
+        /// Only the two coarsest resolutions of each sweep (two frames for LK14).
         #[arg(long)]
         quick: bool,
+        /// Which sweeps.
+        #[arg(long, value_enum, default_value = "all")]
+        only: Sweeps,
     },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Sweeps {
+    All,
+    H15,
+    Lk14,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -140,7 +152,7 @@ fn main() -> ExitCode {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
-        Command::Report { out, quick } => report(&out, quick),
+        Command::Report { out, quick, only } => report(&out, quick, only),
         Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
         Command::Bake { scene, frames, weights, size, out, layer, blend } => {
             bake(&scene, BakeRequest { frames, weights, size, layer, blends: blend }, out)
@@ -378,12 +390,20 @@ fn timing(scenes: &[PathBuf], frames: Option<u32>, out: &Path) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-fn report(out: &Path, quick: bool) -> ExitCode {
-    match skinsim_tools::report::speed_error(out, quick) {
-        Ok(rows) => {
+fn report(out: &Path, quick: bool, only: Sweeps) -> ExitCode {
+    let result = (|| -> Result<(), Box<dyn std::error::Error>> {
+        if only != Sweeps::Lk14 {
+            let rows = skinsim_tools::report::speed_error(out, quick)?;
             println!("{} runs; wrote {}", rows.len(), out.join("speed_error.md").display());
-            ExitCode::SUCCESS
         }
+        if only != Sweeps::H15 {
+            let rows = skinsim_tools::lk14_report::speed_error(out, quick)?;
+            println!("{} runs; wrote {}", rows.len(), out.join("speed_error_lk14.md").display());
+        }
+        Ok(())
+    })();
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE

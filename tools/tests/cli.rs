@@ -171,6 +171,13 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     assert_eq!(csv.lines().count(), 7);
     let svg = std::fs::read_to_string(dir.join("speed_error.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("case 7, graded substrate"));
+    // LK14 (issue 5): uniform and adaptive series of three cases, two settings each.
+    let lk14 = std::fs::read_to_string(dir.join("speed_error_lk14.md")).unwrap();
+    let rows: Vec<&str> = lk14.lines().filter(|l| l.starts_with("| case") || l.starts_with("| fig")).collect();
+    assert_eq!(rows.len(), 12, "{lk14}");
+    assert_eq!(rows.iter().filter(|l| l.contains("adaptive")).count(), 6, "{lk14}");
+    assert!(std::fs::read_to_string(dir.join("speed_error_lk14.svg")).unwrap().starts_with("<svg"));
+    assert_eq!(std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap().lines().count(), 13);
 }
 
 #[test]

@@ -1,0 +1,280 @@
+//! `skinsim report`, LK14 part (VALIDATION.md F, issue 5): uniform meshes at several
+//! resolutions against adaptive meshes at several refinement settings, for the wavelength case
+//! (case 10, the fig. 3-3 strip), the two-layer case (case 11, fig. 6-3) and the localized
+//! fig. 6-4 pinch. Each run records
+//! the wall time per frame, the mean vertex count, the wavelength error against the kernels and
+//! the final energy's error against the finest uniform run. Writes speed_error_lk14.md, .csv
+//! and .svg (time per frame against energy error, log-log).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use plotters::prelude::*;
+use skinsim::scene;
+use skinsim_systems::Simulation;
+
+use crate::wrinkles::{resample_on_grid, row_peaks};
+
+/// One run of the sweep.
+#[derive(Clone, Debug)]
+pub struct Lk14Row {
+    pub series: String,
+    pub setting: String,
+    pub mean_vertices: f64,
+    pub ms_per_frame: f64,
+    pub newton_iterations: u32,
+    /// Dominant (case 10) or nearest-to-lambda_2 (case 11) wavelength against the kernels'.
+    pub wavelength_error: f64,
+    /// Final energy against the series' reference (the finest uniform run).
+    pub energy_error: f64,
+    energy: f64,
+}
+
+/// A case: its scene, the layer whose mesh is swept, the mesh line to replace, the kernel
+/// wavelength (mm) the analysis compares with, and the settings.
+struct Case {
+    name: &'static str,
+    scene: &'static str,
+    layer: &'static str,
+    mesh: &'static str,
+    lambda_mm: f64,
+    /// Uniform meshes, coarsest first: (cells x, cells y).
+    uniform: &'static [(u32, u32)],
+    /// Adaptive: the starting cells and (size_min, size_max in mm, refine_angle, and
+    /// refine_compression in mm); the refinement is swept by the angle (the wrinkles' curvature
+    /// sets the edge length, not size_min).
+    start: (u32, u32),
+    adaptive: &'static [(f64, f64, f64, f64)],
+}
+
+const CASES: [Case; 3] = [
+    Case {
+        name: "case 10 (fig. 3-3 strip, lambda 6 mm)",
+        scene: "fig3_3_e1_h1_quick.ron",
+        layer: "skin",
+        mesh: "cells: (128, 18), pattern: Equilateral, z: 0.01875",
+        lambda_mm: 6.0,
+        uniform: &[(64, 9), (96, 13), (128, 18), (192, 27), (256, 36)],
+        start: (64, 9),
+        adaptive: &[(0.25, 3.0, 0.6, 0.05), (0.25, 3.0, 0.4, 0.05), (0.25, 3.0, 0.3, 0.05), (0.25, 3.0, 0.2, 0.05)],
+    },
+    Case {
+        name: "case 11 (fig. 6-3 two layers, lambda_2 2 mm)",
+        scene: "fig6_3_two_layers_quick.ron",
+        layer: "epidermis",
+        mesh: "cells: (96, 55), pattern: Equilateral, z: 1.0125",
+        lambda_mm: 2.0,
+        uniform: &[(48, 28), (64, 37), (96, 55), (128, 74)],
+        start: (48, 28),
+        adaptive: &[(0.1, 1.0, 0.6, 0.02), (0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
+    },
+    // Wrinkles in a disc rather than over the whole patch: where adaptivity can pay.
+    Case {
+        name: "fig. 6-4 pinch (two layers, lambda_2 2 mm)",
+        scene: "fig6_4_pinch.ron",
+        layer: "epidermis",
+        mesh: "cells: (128, 74), pattern: Equilateral, z: 1.0125",
+        lambda_mm: 2.0,
+        uniform: &[(64, 37), (96, 55), (128, 74)],
+        start: (64, 37),
+        adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
+    },
+];
+
+/// Runs the sweeps; `quick` keeps the two coarsest settings of each series and two frames.
+pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Lk14Row>, Box<dyn std::error::Error>> {
+    std::fs::create_dir_all(out)?;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
+    let mut rows = Vec::new();
+    for case in &CASES {
+        let text = std::fs::read_to_string(dir.join(case.scene))?;
+        let take = |n: usize| if quick { n.min(2) } else { n };
+        let mut series: Vec<Lk14Row> = Vec::new();
+        for &(nx, ny) in case.uniform.iter().take(take(case.uniform.len())) {
+            let scene_text = mesh_line(&text, case.mesh, nx, ny, "");
+            series.push(run(case, &scene_text, &dir, "uniform", format!("{nx} x {ny} cells"), quick)?);
+        }
+        for &(lo, hi, angle, c) in case.adaptive.iter().take(take(case.adaptive.len())) {
+            let remesh = format!(
+                ", remesh: Some((size_min: {lo}, size_max: {hi}, refine_angle: {angle}, refine_compression: {c}))"
+            );
+            let scene_text = mesh_line(&text, case.mesh, case.start.0, case.start.1, &remesh);
+            let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm");
+            series.push(run(case, &scene_text, &dir, "adaptive", setting, quick)?);
+        }
+        // The reference: the finest uniform run.
+        let finest = take(case.uniform.len()) - 1;
+        let reference = series[finest].energy;
+        for r in &mut series {
+            r.energy_error = r.energy / reference - 1.0;
+        }
+        rows.extend(series);
+    }
+    write(out, &rows)?;
+    plot(&out.join("speed_error_lk14.svg"), &rows)?;
+    Ok(rows)
+}
+
+/// The scene text with the swept layer's cells replaced and `extra` fields added to it.
+fn mesh_line(text: &str, mesh: &str, nx: u32, ny: u32, extra: &str) -> String {
+    let rest = &mesh[mesh.find(')').expect("cells (x, y)") + 1..];
+    let line_end = text.find(mesh).expect("the swept mesh") + mesh.len();
+    // The layer's closing parenthesis: the last of the first "))," after the mesh (the end of
+    // `bending: Some((..))`, then the layer's own).
+    let close = line_end + text[line_end..].find(")),\n").expect("layer end") + 1;
+    let mut out = text[..close].replace(mesh, &format!("cells: ({nx}, {ny}){rest}"));
+    out.push_str(extra);
+    out.push_str(&text[close..]);
+    out
+}
+
+fn run(
+    case: &Case,
+    text: &str,
+    dir: &Path,
+    kind: &str,
+    setting: String,
+    quick: bool,
+) -> Result<Lk14Row, Box<dyn std::error::Error>> {
+    let mut built = scene::load_str(text, &dir.join(case.scene))?;
+    if quick {
+        built.scene.frames = 2;
+    }
+    let mut sim = Simulation::new(&built);
+    let (mut vertices, mut iterations, mut seconds, mut energy) = (0.0, 0, 0.0, 0.0);
+    for _ in 0..built.scene.frames {
+        let clock = std::time::Instant::now();
+        let s = sim.step();
+        seconds += clock.elapsed().as_secs_f64();
+        if let Some(f) = sim.failure() {
+            return Err(f.into());
+        }
+        // (the swept layer's own vertices, counted outside the timed step)
+        vertices += sim.layer_mesh("skin", case.layer).0.len() as f64;
+        iterations += s.patches[0].newton_iterations;
+        energy = s.patches[0].energy;
+    }
+    let frames = built.scene.frames as f64;
+    let ms_per_frame = 1e3 * seconds / frames;
+    let (uv, x, faces) = sim.layer_mesh("skin", case.layer);
+    let size = uv.iter().fold(glam::DVec2::ZERO, |m, u| m.max(*u));
+    let cells = ((size.x / 0.1e-3).round() as usize, ((size.y / 0.5e-3).round() as usize).max(2));
+    let (guv, gx) = resample_on_grid(&uv, &x, &faces, cells);
+    let peaks = row_peaks(&gx, &guv, 0, 0.05);
+    let nearest = peaks
+        .iter()
+        .map(|p| 1e3 * p.wavelength / case.lambda_mm - 1.0)
+        .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .unwrap_or(f64::NAN);
+    let wavelength_error = if case.layer == "skin" {
+        peaks.first().map_or(f64::NAN, |p| 1e3 * p.wavelength / case.lambda_mm - 1.0)
+    } else {
+        nearest
+    };
+    let row = Lk14Row {
+        series: format!("{}, {kind}", case.name),
+        setting,
+        mean_vertices: vertices / frames,
+        ms_per_frame,
+        newton_iterations: iterations,
+        wavelength_error,
+        energy_error: 0.0,
+        energy,
+    };
+    eprintln!("{}: {}: {:.0} ms/frame, {:.0} vertices", row.series, row.setting, row.ms_per_frame, row.mean_vertices);
+    Ok(row)
+}
+
+fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
+    let mut md = String::from(
+        "# Speed against error, LK14 (VALIDATION.md F, issue 5)\n\n\
+         Regenerate: `cargo run --release --bin skinsim -- report --out report`.\n\
+         Uniform meshes of the swept layer against adaptive ones (REMESH.md) started from the coarsest uniform \
+         mesh. Wavelength error: the dominant peak (case 10) or the peak nearest lambda_2 (case 11) against the \
+         kernel wavelength; wrinkles under kernels are multistable, so this error is a mode selection more than \
+         a discretization error. Energy error: the final total energy against the finest uniform run of the case. \
+         Vertices: the swept layer's, mean over the frames. Time: wall per frame on this machine.\n\n\
+         | series | setting | vertices | ms / frame | Newton iterations | wavelength error | energy error |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    let mut csv =
+        String::from("series,setting,mean_vertices,ms_per_frame,newton_iterations,wavelength_error,energy_error\n");
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.0} | {:.0} | {} | {:+.2} % | {:+.3} % |",
+            r.series,
+            r.setting,
+            r.mean_vertices,
+            r.ms_per_frame,
+            r.newton_iterations,
+            100.0 * r.wavelength_error,
+            100.0 * r.energy_error
+        );
+        let _ = writeln!(
+            csv,
+            "{},{},{:.1},{:.3},{},{:.6},{:.6}",
+            r.series,
+            r.setting,
+            r.mean_vertices,
+            r.ms_per_frame,
+            r.newton_iterations,
+            r.wavelength_error,
+            r.energy_error
+        );
+    }
+    std::fs::write(out.join("speed_error_lk14.md"), md)?;
+    std::fs::write(out.join("speed_error_lk14.csv"), csv)
+}
+
+fn plot(path: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>> {
+    // (the reference run has zero error: drawn at the floor)
+    let err = |r: &Lk14Row| r.energy_error.abs().max(1e-5);
+    let (emin, emax) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(err(r)), b.max(err(r))));
+    let (tmin, tmax) =
+        rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.ms_per_frame), b.max(r.ms_per_frame)));
+    let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("LK14: time per frame against energy error (log-log)", ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((emin / 1.5..emax * 1.5).log_scale(), (tmin / 1.5..tmax * 1.5).log_scale())?;
+    chart.configure_mesh().x_desc("|energy error| against the finest uniform run").y_desc("ms per frame").draw()?;
+    let mut names: Vec<&str> = rows.iter().map(|r| r.series.as_str()).collect();
+    names.dedup();
+    for (i, name) in names.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let pts: Vec<(f64, f64)> =
+            rows.iter().filter(|r| r.series == *name).map(|r| (err(r), r.ms_per_frame)).collect();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
+        chart.draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_swept_mesh_line_is_edited_and_remesh_added_to_its_layer() {
+        let text = "layers: [\n    Layer(name: \"a\", mesh: Grid(cells: (9, 9), z: 0.0)),\n    Layer(name: \"s\", \
+                    mesh: Grid(cells: (128, 18), pattern: Equilateral, z: 0.5),\n        bending: Some((model: Tan))),\n]";
+        let out = mesh_line(text, "cells: (128, 18), pattern: Equilateral, z: 0.5", 64, 9, ", remesh: X");
+        assert!(out.contains("cells: (64, 9), pattern: Equilateral, z: 0.5"), "{out}");
+        assert!(out.contains("bending: Some((model: Tan)), remesh: X),\n]"), "{out}");
+        assert!(out.contains("cells: (9, 9)"));
+    }
+}
