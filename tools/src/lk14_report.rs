@@ -9,7 +9,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use plotters::prelude::*;
 use skinsim::scene;
 use skinsim_systems::Simulation;
 
@@ -229,39 +228,14 @@ fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
 
 fn plot(path: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>> {
     // (the reference run has zero error: drawn at the floor)
-    let err = |r: &Lk14Row| r.energy_error.abs().max(1e-5);
-    let (emin, emax) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(err(r)), b.max(err(r))));
-    let (tmin, tmax) =
-        rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.ms_per_frame), b.max(r.ms_per_frame)));
-    let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption("LK14: time per frame against energy error (log-log)", ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d((emin / 1.5..emax * 1.5).log_scale(), (tmin / 1.5..tmax * 1.5).log_scale())?;
-    chart.configure_mesh().x_desc("|energy error| against the finest uniform run").y_desc("ms per frame").draw()?;
-    let mut names: Vec<&str> = rows.iter().map(|r| r.series.as_str()).collect();
-    names.dedup();
-    for (i, name) in names.iter().enumerate() {
-        let colour = Palette99::pick(i).to_rgba();
-        let pts: Vec<(f64, f64)> =
-            rows.iter().filter(|r| r.series == *name).map(|r| (err(r), r.ms_per_frame)).collect();
-        chart
-            .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))?
-            .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
-        chart.draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))?;
-    }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    root.present()?;
-    Ok(())
+    let points: Vec<(&str, f64, f64)> =
+        rows.iter().map(|r| (r.series.as_str(), r.energy_error.abs().max(1e-5), r.ms_per_frame)).collect();
+    let labels = (
+        "LK14: time per frame against energy error (log-log)",
+        "|energy error| against the finest uniform run",
+        "ms per frame",
+    );
+    crate::report::log_log_plot(path, labels, &points)
 }
 
 #[cfg(test)]

@@ -122,25 +122,36 @@ fn write_table(out: &Path, rows: &[Row]) -> std::io::Result<()> {
 }
 
 fn plot(path: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error>> {
-    let err = |r: &Row| r.error().max(1e-4);
-    let (emin, emax) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(err(r)), b.max(err(r))));
-    let (tmin, tmax) =
-        rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.ms_per_increment), b.max(r.ms_per_increment)));
+    let points: Vec<(&str, f64, f64)> =
+        rows.iter().map(|r| (r.series, r.error().max(1e-4), r.ms_per_increment)).collect();
+    let labels =
+        ("time per increment against error (log-log)", "worst of onset and amplitude error", "ms per increment");
+    log_log_plot(path, labels, &points)
+}
+
+/// A log-log SVG plot of (series, error, time) points, one line per series in order of first
+/// appearance; `labels` = (caption, x, y).
+pub fn log_log_plot(
+    path: &Path,
+    labels: (&str, &str, &str),
+    points: &[(&str, f64, f64)],
+) -> Result<(), Box<dyn std::error::Error>> {
+    let (emin, emax) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let (tmin, tmax) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.2), b.max(p.2)));
     let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
-        .caption("time per increment against error (log-log)", ("sans-serif", 20))
+        .caption(labels.0, ("sans-serif", 20))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
         .build_cartesian_2d((emin / 1.5..emax * 1.5).log_scale(), (tmin / 1.5..tmax * 1.5).log_scale())?;
-    chart.configure_mesh().x_desc("worst of onset and amplitude error").y_desc("ms per increment").draw()?;
-    let mut names: Vec<&str> = rows.iter().map(|r| r.series).collect();
+    chart.configure_mesh().x_desc(labels.1).y_desc(labels.2).draw()?;
+    let mut names: Vec<&str> = points.iter().map(|p| p.0).collect();
     names.dedup();
     for (i, name) in names.iter().enumerate() {
         let colour = Palette99::pick(i).to_rgba();
-        let pts: Vec<(f64, f64)> =
-            rows.iter().filter(|r| r.series == *name).map(|r| (err(r), r.ms_per_increment)).collect();
+        let pts: Vec<(f64, f64)> = points.iter().filter(|p| p.0 == *name).map(|p| (p.1, p.2)).collect();
         chart
             .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))?
             .label(*name)
