@@ -3,6 +3,8 @@
 //! its centroid; an edge with `EdgeOpposite` gets its `Hinge`, the map's bending factor sampled
 //! at its midpoint; the lumped masses of every layer that got new faces are recomputed.
 
+use std::collections::HashMap;
+
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DVec2};
 use skinsim::model::*;
@@ -20,13 +22,22 @@ pub fn resample_properties(world: &mut World) {
         .iter(world)
         .map(|(e, v, o, of)| (e, v.0, o.0, of.0))
         .collect();
+    // Per layer once (a property map is large: not cloned per element).
+    let mut layer_data: HashMap<Entity, LayerData> = HashMap::new();
+    for &layer in faces.iter().map(|f| &f.2).chain(edges.iter().map(|e| &e.3)) {
+        layer_data.entry(layer).or_insert_with(|| LayerData {
+            thickness: world.get::<Thickness>(layer).map(|t| t.0),
+            bending: world.get::<Bending>(layer).copied(),
+            properties: world.get::<LayerProperties>(layer).cloned(),
+        });
+    }
     let mut layers: Vec<Entity> = Vec::new();
     for (face, tri, layer) in faces {
-        let Some(&Thickness(h)) = world.get::<Thickness>(layer) else { continue };
-        let props = world.get::<LayerProperties>(layer).cloned();
+        let data = &layer_data[&layer];
+        let Some(h) = data.thickness else { continue };
         let rest = tri.map(|v| world.get::<RestPos>(v).expect("vertex").0);
         let uv = tri.map(|v| world.get::<MaterialPos>(v).expect("vertex").0);
-        let local = factors_at(props.as_ref(), (uv[0] + uv[1] + uv[2]) / 3.0);
+        let local = factors_at(data.properties.as_ref(), (uv[0] + uv[1] + uv[2]) / 3.0);
         // (a rest triangle a remesh made degenerate falls back to its material-space shape,
         // which a remesh keeps positive)
         let shape = MembraneRest::from_rest_triangle(rest, h * local.thickness, DMat2::IDENTITY).or_else(|| {
@@ -35,18 +46,18 @@ pub fn resample_properties(world: &mut World) {
         let Some(shape) = shape else { continue };
         let mut e = world.entity_mut(face);
         e.insert(FaceRest(shape));
-        if props.is_some() {
+        if data.properties.is_some() {
             e.insert(ModulusScale(local.young));
         }
         layers.push(layer);
     }
     for (edge, ends, opposite, layer) in edges {
-        let Some(&bending) = world.get::<Bending>(layer) else { continue };
-        let props = world.get::<LayerProperties>(layer).cloned();
+        let data = &layer_data[&layer];
+        let Some(bending) = data.bending else { continue };
         let q = [ends[0], ends[1], opposite[0], opposite[1]];
         let rest = q.map(|v| world.get::<RestPos>(v).expect("vertex").0);
         let mid: DVec2 = ends.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0).sum::<DVec2>() / 2.0;
-        let k_b = bending.stiffness * factors_at(props.as_ref(), mid).bending();
+        let k_b = bending.stiffness * factors_at(data.properties.as_ref(), mid).bending();
         let hinge = Hinge { opposite, rest: HingeRest::from_rest(bending.model, k_b, rest), image: None };
         world.entity_mut(edge).insert(hinge).remove::<EdgeOpposite>();
     }
@@ -57,12 +68,18 @@ pub fn resample_properties(world: &mut World) {
     }
 }
 
+struct LayerData {
+    thickness: Option<f64>,
+    bending: Option<Bending>,
+    properties: Option<LayerProperties>,
+}
+
 /// Lumped masses: density x thickness x rest area / 3 per vertex (as at spawn).
 fn lump_masses(world: &mut World, layer: Entity) {
     let Some(density) = world.get::<Material>(layer).map(|m| m.density) else { return };
     let faces: Vec<Entity> = world.get::<LayerFaces>(layer).map_or(Vec::new(), |f| f.entities().to_vec());
     let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
-    let mut mass: std::collections::HashMap<Entity, f64> = verts.iter().map(|&v| (v, 0.0)).collect();
+    let mut mass: HashMap<Entity, f64> = verts.iter().map(|&v| (v, 0.0)).collect();
     for f in faces {
         let (Some(tri), Some(rest)) = (world.get::<FaceVerts>(f), world.get::<FaceRest>(f)) else { continue };
         let m = density * rest.0.volume / 3.0;
