@@ -178,6 +178,20 @@ fn the_recording_holds_every_layer_and_frame() {
     }
 }
 
+/// Issue 5: a remeshed layer is also logged in material space (faces and edges) every frame,
+/// with its triangles on the timeline (they change); a layer that is not remeshed is not.
+#[test]
+fn the_recording_holds_the_material_space_mesh_of_a_remeshed_layer() {
+    let mut scene = load("lk14/remesh_one_layer_quick.ron");
+    scene.scene.frames = 2;
+    let (frames, _) = record(&scene, "remesh");
+    for entity in ["/patches/skin/dermis", "/material/skin/dermis", "/material/skin/dermis/edges"] {
+        let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
+        assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2], "{entity}");
+    }
+    assert!(!frames.contains_key("/material/skin/base"));
+}
+
 /// KCK18: body, skin, anchors (points and springs) and the largest jump of each method.
 #[test]
 fn the_recording_holds_the_anchors_of_each_method() {
