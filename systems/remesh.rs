@@ -24,7 +24,7 @@ pub fn remesh_layers(world: &mut World) {
     for (layer, mut settings) in layers {
         // A kernel's support must keep enough vertices for its weights to be adjusted (at
         // least three, not collinear; LK14 4.2.1): edges at most half the smallest radius of a
-        // kernel on this layer. (Measured without the cap: a 1.1 mm kernel radius under a 2 mm
+        // kernel on this layer. (Measured without the cap: a 1.3 mm kernel radius under a 2 mm
         // size_max left supports of one or two vertices, and the frame did not converge.)
         let radius = kernels.iter().filter(|k| k.upper == layer || k.lower == layer).map(|k| k.shape.radius);
         let p = &mut settings.params;

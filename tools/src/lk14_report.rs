@@ -42,9 +42,10 @@ struct Case {
     uniform: &'static [(u32, u32)],
     /// Adaptive: the starting cells and (size_min, size_max in mm, refine_angle, and
     /// refine_compression in mm); the refinement is swept by the angle (the wrinkles' curvature
-    /// sets the edge length, not size_min).
+    /// sets the edge length, not size_min). Remeshed every `every` frames.
     start: (u32, u32),
     adaptive: &'static [(f64, f64, f64, f64)],
+    every: u32,
 }
 
 const CASES: [Case; 3] = [
@@ -56,6 +57,7 @@ const CASES: [Case; 3] = [
         lambda_mm: Some(6.0),
         uniform: &[(64, 9), (96, 13), (128, 18), (192, 27), (256, 36)],
         start: (64, 9),
+        every: 3,
         adaptive: &[(0.25, 3.0, 0.6, 0.05), (0.25, 3.0, 0.4, 0.05), (0.25, 3.0, 0.3, 0.05), (0.25, 3.0, 0.2, 0.05)],
     },
     Case {
@@ -66,6 +68,7 @@ const CASES: [Case; 3] = [
         lambda_mm: Some(2.0),
         uniform: &[(48, 28), (64, 37), (96, 55), (128, 74)],
         start: (48, 28),
+        every: 3,
         adaptive: &[(0.1, 1.0, 0.6, 0.02), (0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
     },
     // Wrinkles in a disc rather than over the whole patch: where adaptivity can pay.
@@ -77,6 +80,7 @@ const CASES: [Case; 3] = [
         lambda_mm: None,
         uniform: &[(64, 37), (96, 55), (128, 74)],
         start: (64, 37),
+        every: 1,
         adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
     },
 ];
@@ -95,11 +99,13 @@ pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Lk14Row>, Box<dyn std:
             series.push(run(case, &scene_text, &dir, "uniform", format!("{nx} x {ny} cells"), quick)?);
         }
         for &(lo, hi, angle, c) in case.adaptive.iter().take(take(case.adaptive.len())) {
+            let every = case.every;
             let remesh = format!(
-                ", remesh: Some((size_min: {lo}, size_max: {hi}, refine_angle: {angle}, refine_compression: {c}))"
+                ", remesh: Some((size_min: {lo}, size_max: {hi}, refine_angle: {angle}, refine_compression: {c}, \
+                 every: {every}))"
             );
             let scene_text = mesh_line(&text, case.mesh, case.start.0, case.start.1, &remesh);
-            let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm");
+            let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm, every {every}");
             series.push(run(case, &scene_text, &dir, "adaptive", setting, quick)?);
         }
         // The reference: the finest uniform run.
