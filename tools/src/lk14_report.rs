@@ -196,8 +196,10 @@ fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
          Uniform meshes of the swept layer against adaptive ones (REMESH.md) started from the coarsest uniform \
          mesh. Wavelength error: the dominant peak (case 10) or the peak nearest lambda_2 (case 11) against the \
          kernel wavelength; wrinkles under kernels are multistable, so this error is a mode selection more than \
-         a discretization error. Energy error: the final total energy against the finest uniform run of the case. \
-         Vertices: the swept layer's, mean over the frames. Time: wall per frame on this machine.\n\n\
+         a discretization error. Adaptive runs start from the coarsest uniform mesh, and the pattern is selected \
+         while the sheet is still flat, so on that mesh: they inherit its mode. Energy error: the final total \
+         energy against the finest uniform run of the case. Vertices: the swept layer's, mean over the frames. \
+         Time: wall per frame on this machine.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | wavelength error | energy error |\n\
          | --- | --- | --- | --- | --- | --- | --- |\n",
     );
