@@ -8,6 +8,7 @@ pub mod capture;
 pub mod kernels;
 pub mod log;
 pub mod log_anchors;
+mod log_mesh;
 pub mod properties;
 pub mod remesh;
 pub mod schedule;

@@ -9,6 +9,8 @@ use glam::{DVec2, DVec3};
 use skinsim::mesh::{self, shading};
 use skinsim::model::*;
 
+use crate::log_mesh::{log_material_mesh, log_mesh};
+
 /// Where Rerun data goes (a file, a spawned viewer, a connection, or memory in tests).
 #[derive(Resource)]
 pub struct RerunSink(pub rerun::RecordingStream);
@@ -26,9 +28,9 @@ pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>) 
 pub struct RenderMesh {
     epoch: u64,
     vertices: Vec<Entity>,
-    tris: Vec<[u32; 3]>,
-    rest_area: Vec<f64>,
-    logged_topology: bool,
+    pub(crate) tris: Vec<[u32; 3]>,
+    pub(crate) rest_area: Vec<f64>,
+    pub(crate) logged_topology: bool,
 }
 
 #[derive(Default)]
@@ -118,81 +120,14 @@ fn render_mesh(
         lf.entities().iter().filter_map(|f| faces.get(*f).ok().map(|fv| fv.0)).collect()
     } else if let Some(lt) = lt {
         let tet_e: Vec<[Entity; 4]> = lt.entities().iter().filter_map(|t| tets.get(*t).ok().map(|tv| tv.0)).collect();
-        let mut index = HashMap::new();
-        let mut ents = Vec::new();
-        let as_idx: Vec<[u32; 4]> = tet_e
-            .iter()
-            .map(|t| {
-                t.map(|e| {
-                    *index.entry(e).or_insert_with(|| {
-                        ents.push(e);
-                        (ents.len() - 1) as u32
-                    })
-                })
-            })
-            .collect();
+        let (ents, as_idx) = mesh::compact(&tet_e);
         mesh::surface_of_tets(&as_idx).into_iter().map(|f| f.map(|i| ents[i as usize])).collect()
     } else {
         Vec::new()
     };
-    let mut index = HashMap::new();
-    let mut rm = RenderMesh { epoch, ..Default::default() };
-    for t in &tris_e {
-        let tri = t.map(|e| {
-            *index.entry(e).or_insert_with(|| {
-                rm.vertices.push(e);
-                (rm.vertices.len() - 1) as u32
-            })
-        });
-        rm.tris.push(tri);
-    }
+    let (vertices_e, tris) = mesh::compact(&tris_e);
+    let mut rm = RenderMesh { epoch, vertices: vertices_e, tris, ..Default::default() };
     let rest: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.1 .0).unwrap_or_default()).collect();
     rm.rest_area = rm.tris.iter().map(|t| shading::triangle_area(&rest, t)).collect();
     rm
-}
-
-/// Logs a layer's mesh coloured by strain; returns the per-vertex strain. The triangles are
-/// static unless the layer is remeshed: then they are logged at every topology change, on the
-/// timeline (static data would shadow every earlier frame's triangles).
-fn log_mesh(rec: &rerun::RecordingStream, path: &str, rm: &mut RenderMesh, pos: &[DVec3], remeshed: bool) -> Vec<f64> {
-    let (normals, strain) = shading::normals_and_strain(pos, &rm.tris, &rm.rest_area);
-    let f3 = |v: &DVec3| [v.x as f32, v.y as f32, v.z as f32];
-    if !rm.logged_topology {
-        let indices = rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t));
-        let topology = rerun::Mesh3D::update_fields().with_triangle_indices(indices);
-        let _ = if remeshed { rec.log(path, &topology) } else { rec.log_static(path, &topology) };
-        rm.logged_topology = true;
-    }
-    let mesh = rerun::Mesh3D::update_fields()
-        .with_vertex_positions(pos.iter().map(f3))
-        .with_vertex_normals(normals.iter().map(f3))
-        .with_vertex_colors(colours(&strain));
-    let _ = rec.log(path, &mesh);
-    strain
-}
-
-fn colours(strain: &[f64]) -> Vec<rerun::Color> {
-    strain
-        .iter()
-        .map(|s| {
-            let [r, g, b, a] = shading::strain_colour(*s);
-            rerun::Color::from_unmultiplied_rgba(r, g, b, a)
-        })
-        .collect()
-}
-
-/// A remeshed layer in material space (LK14 fig. 6-4, left and centre): the triangles flat at
-/// z = 0 coloured by strain, and their edges as lines, so the adaptive resolution shows.
-fn log_material_mesh(rec: &rerun::RecordingStream, path: &str, rm: &RenderMesh, uv: &[DVec2], strain: &[f64]) {
-    let p = |u: &DVec2| [u.x as f32, u.y as f32, 0.0];
-    let mesh = rerun::Mesh3D::new(uv.iter().map(p))
-        .with_triangle_indices(rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t)))
-        .with_vertex_colors(colours(strain));
-    let _ = rec.log(path.to_string(), &mesh);
-    let edges: Vec<[[f32; 3]; 2]> =
-        mesh::edges(&rm.tris).iter().map(|e| [p(&uv[e.v[0] as usize]), p(&uv[e.v[1] as usize])]).collect();
-    let _ = rec.log(
-        format!("{path}/edges"),
-        &rerun::LineStrips3D::new(edges).with_colors([rerun::Color::from_rgb(40, 40, 40)]),
-    );
 }

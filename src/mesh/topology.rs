@@ -110,6 +110,25 @@ pub fn check_surface(m: &SurfaceMesh) -> Result<(), MeshError> {
 }
 
 /// Boundary triangles of a tetrahedral mesh, oriented outwards, in a stable order.
+/// Elements over arbitrary vertex keys (entities, say) as indices into the keys they use, in
+/// first-use order: (keys, elements).
+pub fn compact<T: Copy + Eq + std::hash::Hash, const N: usize>(elements: &[[T; N]]) -> (Vec<T>, Vec<[u32; N]>) {
+    let mut index: HashMap<T, u32> = HashMap::new();
+    let mut keys = Vec::new();
+    let indexed = elements
+        .iter()
+        .map(|e| {
+            e.map(|k| {
+                *index.entry(k).or_insert_with(|| {
+                    keys.push(k);
+                    (keys.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    (keys, indexed)
+}
+
 pub fn surface_of_tets(tets: &[[u32; 4]]) -> Vec<[u32; 3]> {
     // Faces of a positively oriented tet (a, b, c, d) with outward normals.
     let mut count: HashMap<[u32; 3], (usize, [u32; 3])> = HashMap::with_capacity(tets.len() * 2);
@@ -131,6 +150,14 @@ pub fn surface_of_tets(tets: &[[u32; 4]]) -> Vec<[u32; 3]> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn compact_numbers_keys_in_first_use_order() {
+        let (keys, tris) = compact(&[['c', 'a', 'b'], ['b', 'a', 'd']]);
+        assert_eq!(keys, ['c', 'a', 'b', 'd']);
+        assert_eq!(tris, [[0, 1, 2], [2, 1, 3]]);
+    }
+
     use super::*;
     use glam::{DVec2, DVec3};
 
