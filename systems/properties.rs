@@ -1,15 +1,16 @@
 //! PropertyResample (ARCHITECTURE.md 2; LK14 5.2): rest data for the elements a remesh created.
-//! A face without `FaceRest` gets its rest shape and the property map's thickness and modulus at
-//! its centroid; an edge with `EdgeOpposite` gets its `Hinge`, the map's bending factor sampled
-//! at its midpoint; the lumped masses of every layer that got new faces are recomputed.
+//! A face without `FaceRest` gets its rest shape, the layer's prestrain F0 (H15 4.3) and the
+//! property map's thickness and modulus at its centroid; an edge with `EdgeOpposite` gets its
+//! `Hinge` (with the prestrain's rest curvature), the map's bending factor sampled at its
+//! midpoint; the lumped masses of every layer that got new faces are recomputed.
 
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DVec2};
 use skinsim::model::*;
-use skinsim::physics::hinge::HingeRest;
 use skinsim::physics::membrane::MembraneRest;
+use skinsim::physics::prestrain::hinge_with_curvature;
 
 pub fn resample_properties(world: &mut World) {
     let faces: Vec<(Entity, [Entity; 3], Entity)> = world
@@ -29,6 +30,7 @@ pub fn resample_properties(world: &mut World) {
             thickness: world.get::<Thickness>(layer).map(|t| t.0),
             bending: world.get::<Bending>(layer).copied(),
             properties: world.get::<LayerProperties>(layer).cloned(),
+            prestrain: world.get::<LayerPrestrain>(layer).cloned(),
         });
     }
     let mut layers: Vec<Entity> = Vec::new();
@@ -37,15 +39,22 @@ pub fn resample_properties(world: &mut World) {
         let Some(h) = data.thickness else { continue };
         let rest = tri.map(|v| world.get::<RestPos>(v).expect("vertex").0);
         let uv = tri.map(|v| world.get::<MaterialPos>(v).expect("vertex").0);
-        let local = factors_at(data.properties.as_ref(), (uv[0] + uv[1] + uv[2]) / 3.0);
+        let centre = (uv[0] + uv[1] + uv[2]) / 3.0;
+        let local = factors_at(data.properties.as_ref(), centre);
+        let f0 = |tri: [glam::DVec3; 3]| data.prestrain.as_ref().map(|p| p.face_f0(tri, centre));
         // (a rest triangle a remesh made degenerate falls back to its material-space shape,
         // which a remesh keeps positive)
-        let shape = MembraneRest::from_rest_triangle(rest, h * local.thickness, DMat2::IDENTITY).or_else(|| {
-            MembraneRest::from_rest_triangle(uv.map(|u| u.extend(0.0)), h * local.thickness, DMat2::IDENTITY)
+        let flat = uv.map(|u| u.extend(0.0));
+        let shape = [rest, flat].into_iter().find_map(|tri| {
+            let f0 = f0(tri);
+            MembraneRest::from_rest_triangle(tri, h * local.thickness, f0.unwrap_or(DMat2::IDENTITY)).map(|s| (s, f0))
         });
-        let Some(shape) = shape else { continue };
+        let Some((shape, f0)) = shape else { continue };
         let mut e = world.entity_mut(face);
         e.insert(FaceRest(shape));
+        if let Some(f0) = f0 {
+            e.insert(FacePrestrain(f0));
+        }
         if data.properties.is_some() {
             e.insert(ModulusScale(local.young));
         }
@@ -58,7 +67,8 @@ pub fn resample_properties(world: &mut World) {
         let rest = q.map(|v| world.get::<RestPos>(v).expect("vertex").0);
         let mid: DVec2 = ends.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0).sum::<DVec2>() / 2.0;
         let k_b = bending.stiffness * factors_at(data.properties.as_ref(), mid).bending();
-        let hinge = Hinge { opposite, rest: HingeRest::from_rest(bending.model, k_b, rest), image: None };
+        let (kappa, along) = data.prestrain.as_ref().map_or((0.0, 0), |p| (p.curvature, p.along));
+        let hinge = Hinge { opposite, rest: hinge_with_curvature(bending.model, k_b, rest, kappa, along), image: None };
         world.entity_mut(edge).insert(hinge).remove::<EdgeOpposite>();
     }
     layers.sort_unstable();
@@ -72,6 +82,7 @@ struct LayerData {
     thickness: Option<f64>,
     bending: Option<Bending>,
     properties: Option<LayerProperties>,
+    prestrain: Option<LayerPrestrain>,
 }
 
 /// Lumped masses: density x thickness x rest area / 3 per vertex (as at spawn).

@@ -273,4 +273,28 @@ fn bad_remesh_settings_name_the_field() {
     ])])"#;
     let e = err(&volume.replace("REMESH", REMESH));
     mentions(&e, &["\"dermis\"", "remesh", "shell layers", "Volume"]);
+    // A prestrain is carried across a remesh; a capture's per-element rest state is not.
+    load_str(
+        &good.replace("thickness: 0.1)", "thickness: 0.1), prestrain: (stretch: (1.02, 1.0, 1.0))"),
+        Path::new("s.ron"),
+    )
+    .unwrap();
+    let capture = r#"Attach(layer: "film", to: "base", stiffness: 0.01), Capture(layers: ["film"], frame: 1),"#;
+    let e = err(&good.replace(r#"Attach(layer: "film", to: "base", stiffness: 0.01),"#, capture));
+    mentions(&e, &["drivers[2].layers", "\"film\" is remeshed", "captured"]);
+}
+
+/// A smooth perturbation's cell must be a positive length.
+#[test]
+fn a_perturbation_cell_must_be_positive() {
+    let with = |cell: &str| {
+        GOOD.replace(
+            "name: \"p\",",
+            &format!("name: \"p\", solver: (perturbation: Some((amplitude: 0.01, seed: 1, cell: {cell}))),"),
+        )
+    };
+    load_str(&with("Some(0.5)"), Path::new("s.ron")).unwrap();
+    for bad in ["Some(0.0)", "Some(-1.0)"] {
+        mentions(&err(&with(bad)), &["solver.perturbation.cell", "> 0"]);
+    }
 }

@@ -92,7 +92,8 @@ pub struct Bending {
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TopologyEpoch(pub u64);
 
-/// Adaptive remeshing of a shell layer (REMESH.md), SI thresholds, every `every` frames.
+/// Adaptive remeshing of a shell layer (REMESH.md), SI thresholds: after the first solved frame,
+/// then every `every` frames.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct RemeshSettings {
     pub params: crate::mesh::remesh::RemeshParams,
@@ -221,6 +222,32 @@ pub struct FaceRest(pub crate::physics::membrane::MembraneRest);
 /// identity when absent. FaceRest already holds it folded in; this is the record.
 #[derive(Component, Clone, Copy, Debug)]
 pub struct FacePrestrain(pub DMat2);
+
+/// A shell layer's scene prestrain (H15 4.3), SI: principal stretches (times a map weight,
+/// I + w (S - I)) and a rest curvature along x (0) or y (1). Kept on the layer so that the
+/// elements a remesh creates get the same prestrain as those spawned with the scene.
+#[derive(Component, Clone, Debug)]
+pub struct LayerPrestrain {
+    pub stretch: DVec3,
+    pub map: Option<WeightMap>,
+    /// Rest curvature (1/m) along `along`.
+    pub curvature: f64,
+    pub along: usize,
+}
+
+impl LayerPrestrain {
+    /// The principal stretches at a material point.
+    pub fn stretch_at(&self, uv: DVec2) -> DVec3 {
+        self.map
+            .as_ref()
+            .map_or(self.stretch, |m| crate::physics::prestrain::weighted_stretch(self.stretch, m.sample(uv)))
+    }
+
+    /// F0 of a rest triangle whose centroid is at `centre` in material space.
+    pub fn face_f0(&self, rest: [DVec3; 3], centre: DVec2) -> DMat2 {
+        crate::physics::prestrain::membrane_f0(rest, self.stretch_at(centre))
+    }
+}
 
 /// A per-element factor on the layer's Young's modulus (randomized properties, H15 6.2);
 /// 1 when absent. On faces and tets.

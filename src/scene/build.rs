@@ -65,21 +65,11 @@ pub struct BuiltLayer {
     pub material: Option<crate::model::Material>,
     pub thickness: Option<f64>,
     pub bending: Option<crate::model::Bending>,
-    pub prestrain: Option<BuiltPrestrain>,
+    pub prestrain: Option<crate::model::LayerPrestrain>,
     /// (relative amplitude, seed) of the per-element modulus randomization.
     pub randomize: Option<(f64, u64)>,
     pub properties: Option<crate::model::LayerProperties>,
     pub remesh: Option<crate::model::RemeshSettings>,
-}
-
-/// A layer's prestrain, in SI units.
-#[derive(Clone, Debug)]
-pub struct BuiltPrestrain {
-    pub stretch: DVec3,
-    pub map: Option<WeightMap>,
-    /// Rest curvature (1/m) along `along` (0 = x, 1 = y).
-    pub curvature: f64,
-    pub along: usize,
 }
 
 impl LayerMesh {
@@ -274,6 +264,12 @@ impl Builder {
                 return Err(self.err(format!("{at}.solver.perturbation.amplitude"), "must be >= 0"));
             }
             pert.amplitude *= len;
+            if let Some(cell) = &mut pert.cell {
+                if !(*cell > 0.0 && cell.is_finite()) {
+                    return Err(self.err(format!("{at}.solver.perturbation.cell"), "must be > 0"));
+                }
+                *cell *= len;
+            }
         }
         let offset = DVec3::new(p.offset.0, p.offset.1, p.offset.2) * len;
         let mut layers: Vec<BuiltLayer> = Vec::new();
@@ -391,6 +387,16 @@ impl Builder {
                         return Err(self.err(
                             format!("{dat}.layers"),
                             format!("\"{}\" is kinematic: it has no rest state to capture", layers[li].name),
+                        ));
+                    }
+                    if let Some(&li) = layers_i.iter().find(|&&li| layers[li].remesh.is_some()) {
+                        return Err(self.err(
+                            format!("{dat}.layers"),
+                            format!(
+                                "\"{}\" is remeshed: a captured rest state is per element and is not carried \
+                                 across a remesh",
+                                layers[li].name
+                            ),
                         ));
                     }
                     let maps = layers_i
@@ -705,7 +711,6 @@ impl Builder {
             return Err(self.err(at.to_string(), format!("remeshing is for shell layers ({:?} layer)", l.kind)));
         }
         let unsupported = [
-            (l.prestrain.is_some(), "prestrain"),
             (l.randomize.is_some(), "randomize"),
             (shared.iter().any(|s| s.is_some()), "vertices shared with another layer"),
         ];
@@ -774,7 +779,7 @@ impl Builder {
         bends: bool,
         len: f64,
         mesh: &LayerMesh,
-    ) -> Result<BuiltPrestrain, SceneError> {
+    ) -> Result<crate::model::LayerPrestrain, SceneError> {
         let stretch = DVec3::new(p.stretch.0, p.stretch.1, p.stretch.2);
         let det = stretch.x * stretch.y * if kind == LayerKind::Shell { 1.0 } else { stretch.z };
         if !stretch.is_finite() || stretch.min_element() <= 0.0 {
@@ -796,7 +801,12 @@ impl Builder {
             return Err(self.err(format!("{at}.curvature_along"), "the curvature runs along X or Y"));
         }
         let map = p.map.as_ref().map(|m| self.weight_map(&format!("{at}.map"), m, mesh)).transpose()?;
-        Ok(BuiltPrestrain { stretch, map, curvature: p.curvature / len, along: p.curvature_along.index() })
+        Ok(crate::model::LayerPrestrain {
+            stretch,
+            map,
+            curvature: p.curvature / len,
+            along: p.curvature_along.index(),
+        })
     }
 
     /// Volume layers that touch (one's bottom on another's top) must share their interface

@@ -259,6 +259,11 @@ pub struct Perturbation {
     /// Largest displacement (length units), uniform in [-amplitude, amplitude].
     pub amplitude: f64,
     pub seed: u64,
+    /// With a length: a smooth field instead of independent vertex values, amplitude x Perlin
+    /// noise of this cell size over material space. Every mesh of the patch then gets the same
+    /// imperfection, so refining (or remeshing) does not redraw the wrinkle mode it seeds.
+    #[serde(default)]
+    pub cell: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -306,7 +311,8 @@ pub struct RemeshSpec {
     /// Velocity-gradient term (length per second), for the implicit-Euler mode.
     #[serde(default)]
     pub refine_velocity: Option<f64>,
-    /// Remesh every this many frames.
+    /// Remesh after the first solved frame, then every this many frames (the first frame runs on
+    /// the mesh given).
     #[serde(default = "default_every")]
     pub every: u32,
     /// Split midpoints on the curved surface (default); false puts them on the straight edge

@@ -8,6 +8,7 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 
 use super::build::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
+use super::schema::Perturbation;
 use crate::mesh;
 use crate::model::*;
 use crate::physics::hinge::HingeRest;
@@ -63,11 +64,11 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         }
     }
     let mut all_rest = Vec::new();
-    let mut rng = p.solver.perturbation.map(|q| (q.amplitude, rand_pcg::Pcg64::seed_from_u64(q.seed)));
+    let mut rng = p.solver.perturbation.map(|q| (q, rand_pcg::Pcg64::seed_from_u64(q.seed)));
     for (li, l) in p.layers.iter().enumerate() {
         let mut l = l.clone();
-        if let (Some((amplitude, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
-            perturb(m, &fixed[li], *amplitude, rng);
+        if let (Some((q, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
+            perturb(m, &fixed[li], q, rng);
         }
         let owners: Vec<Option<Entity>> =
             l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
@@ -257,6 +258,9 @@ fn spawn_layer(
     }
     if let Some(r) = l.remesh {
         e.insert((r, RemeshReport::default()));
+        if let Some(p) = &l.prestrain {
+            e.insert(p.clone());
+        }
     }
     let layer = e.id();
     let rest = l.mesh.rest();
@@ -278,10 +282,6 @@ fn spawn_layer(
     let mut next = spawned.into_iter();
     let verts: Vec<Entity> =
         owners.iter().map(|o| o.unwrap_or_else(|| next.next().expect("one per own vertex"))).collect();
-    let stretch_at = |centre: DVec2| -> Option<DVec3> {
-        let p = l.prestrain.as_ref()?;
-        Some(p.map.as_ref().map_or(p.stretch, |m| prestrain::weighted_stretch(p.stretch, m.sample(centre))))
-    };
     let mut rng = l.randomize.map(|(a, seed)| (a, rand_pcg::Pcg64::seed_from_u64(seed)));
     let mut modulus = |n: usize| -> Option<Vec<f64>> {
         let (a, rng) = rng.as_mut()?;
@@ -299,7 +299,7 @@ fn spawn_layer(
                 }
                 let tri = f.map(|i| m.rest[i as usize]);
                 let centre = f.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 3.0;
-                let f0 = stretch_at(centre).map(|s| prestrain::membrane_f0(tri, s));
+                let f0 = l.prestrain.as_ref().map(|p| p.face_f0(tri, centre));
                 let local = factors_at(l.properties.as_ref(), centre); // LK14 5.2: faces at the centroid
                 let rest = MembraneRest::from_rest_triangle(tri, h * local.thickness, f0.unwrap_or(DMat2::IDENTITY))
                     .expect("checked mesh");
@@ -362,7 +362,7 @@ fn spawn_layer(
             let scale = modulus(m.tets.len());
             for (ti, t) in m.tets.iter().enumerate() {
                 let centre = t.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 4.0;
-                let f0 = stretch_at(centre).map(DMat3::from_diagonal);
+                let f0 = l.prestrain.as_ref().map(|p| DMat3::from_diagonal(p.stretch_at(centre)));
                 let rest = TetRest::from_rest(t.map(|i| m.rest[i as usize]), f0.unwrap_or(DMat3::IDENTITY))
                     .expect("generated tets are valid");
                 let mut e = world.spawn((TetVerts(t.map(|i| verts[i as usize])), TetOf(layer), TetRestShape(rest)));
@@ -413,7 +413,9 @@ fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
 /// A geometric imperfection: free shell vertices moved along their rest normal by a seeded
 /// uniform amount in [-a, a], in the rest shape itself, so the structure keeps it in equilibrium
 /// (a perturbation of the initial positions alone is solved away at the first frame).
-fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], amplitude: f64, rng: &mut rand_pcg::Pcg64) {
+fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], q: &Perturbation, rng: &mut rand_pcg::Pcg64) {
+    // (a smooth field depends on the material point only, not on the mesh)
+    let field = q.cell.map(|cell| (noise::Perlin::new((q.seed ^ (q.seed >> 32)) as u32), cell));
     let mut normal = vec![DVec3::ZERO; m.rest.len()];
     for f in &m.faces {
         let q = |i: usize| m.rest[f[i] as usize];
@@ -423,8 +425,11 @@ fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], amplitude: f64, rng: 
         }
     }
     for (i, p) in m.rest.iter_mut().enumerate() {
-        let u: f64 = rng.random_range(-1.0..=1.0);
-        let mut d = normal[i].normalize_or_zero() * (u * amplitude);
+        let u: f64 = match &field {
+            Some((perlin, cell)) => noise::NoiseFn::get(perlin, (m.uv[i] / *cell).to_array()).clamp(-1.0, 1.0),
+            None => rng.random_range(-1.0..=1.0),
+        };
+        let mut d = normal[i].normalize_or_zero() * (u * q.amplitude);
         for k in 0..3 {
             if fixed[i][k] {
                 d[k] = 0.0;

@@ -2,9 +2,12 @@
 //! resolutions against adaptive meshes at several refinement settings, for the wavelength case
 //! (case 10, the fig. 3-3 strip), the two-layer case (case 11, fig. 6-3) and the localized
 //! fig. 6-4 pinch. Each run records
-//! the wall time per frame, the mean vertex count, the wavelength error against the kernels and
-//! the final energy's error against the finest uniform run. Writes speed_error_lk14.md, .csv
-//! and .svg (time per frame against energy error, log-log).
+//! the wall time per frame, the mean vertex count, the wavelength error against the kernels, and
+//! the final shape's and energy's errors against the finest uniform run. Every run of a case
+//! gets the same smooth imperfection (a Perlin perturbation in material space): with the
+//! default vertex-random one each mesh draws its own, and the wrinkle mode it seeds (measured
+//! on case 10: 14 or 16 waves by seed, at any resolution) would swamp the discretization
+//! error. Writes speed_error_lk14.md, .csv and .svg (time per frame against shape error).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -26,7 +29,17 @@ pub struct Lk14Row {
     pub wavelength_error: f64,
     /// Final energy against the series' reference (the finest uniform run).
     pub energy_error: f64,
+    /// Final shape against the reference's: RMS distance over a grid in material space, over
+    /// the reference's RMS wrinkle height.
+    pub shape_error: f64,
+    /// Adaptive runs: this run's time over the uniform time at the same shape error (log-log
+    /// between the uniform runs); `upper` when no coarser uniform run is as accurate (the ratio is
+    /// then at most this).
+    pub time_ratio: Option<(f64, bool)>,
+    /// The same at the same |energy error|.
+    pub time_ratio_energy: Option<(f64, bool)>,
     energy: f64,
+    grid: Vec<glam::DVec3>,
 }
 
 /// A case: its scene, the layer whose mesh is swept, the mesh line to replace, the kernel
@@ -38,6 +51,8 @@ struct Case {
     layer: &'static str,
     mesh: &'static str,
     lambda_mm: Option<f64>,
+    /// The imperfection's Perlin cell (mm): half the wrinkle wavelength.
+    cell_mm: f64,
     /// Uniform meshes, coarsest first: (cells x, cells y).
     uniform: &'static [(u32, u32)],
     /// Adaptive: the starting cells and (size_min, size_max in mm, refine_angle, and
@@ -55,10 +70,11 @@ const CASES: [Case; 3] = [
         layer: "skin",
         mesh: "cells: (128, 18), pattern: Equilateral, z: 0.01875",
         lambda_mm: Some(6.0),
+        cell_mm: 3.0,
         uniform: &[(64, 9), (96, 13), (128, 18), (192, 27), (256, 36)],
         start: (64, 9),
         every: 3,
-        adaptive: &[(0.25, 3.0, 0.6, 0.05), (0.25, 3.0, 0.4, 0.05), (0.25, 3.0, 0.3, 0.05), (0.25, 3.0, 0.2, 0.05)],
+        adaptive: &[(0.25, 3.0, 0.4, 0.05), (0.25, 3.0, 0.3, 0.03), (0.25, 3.0, 0.2, 0.02), (0.25, 3.0, 0.2, 0.01)],
     },
     Case {
         name: "case 11 (fig. 6-3 two layers, lambda_2 2 mm)",
@@ -66,10 +82,11 @@ const CASES: [Case; 3] = [
         layer: "epidermis",
         mesh: "cells: (96, 55), pattern: Equilateral, z: 1.0125",
         lambda_mm: Some(2.0),
+        cell_mm: 1.0,
         uniform: &[(48, 28), (64, 37), (96, 55), (128, 74)],
         start: (48, 28),
         every: 3,
-        adaptive: &[(0.1, 1.0, 0.6, 0.02), (0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
+        adaptive: &[(0.1, 1.0, 0.6, 0.05), (0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.01), (0.1, 1.0, 0.2, 0.01)],
     },
     // Wrinkles in a disc rather than over the whole patch: where adaptivity can pay.
     Case {
@@ -78,6 +95,7 @@ const CASES: [Case; 3] = [
         layer: "epidermis",
         mesh: "cells: (128, 74), pattern: Equilateral, z: 1.0125",
         lambda_mm: None,
+        cell_mm: 1.0,
         uniform: &[(64, 37), (96, 55), (128, 74)],
         start: (64, 37),
         every: 1,
@@ -91,7 +109,7 @@ pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Lk14Row>, Box<dyn std:
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
     let mut rows = Vec::new();
     for case in &CASES {
-        let text = std::fs::read_to_string(dir.join(case.scene))?;
+        let text = smooth_perturbation(&std::fs::read_to_string(dir.join(case.scene))?, case.cell_mm);
         let take = |n: usize| if quick { n.min(2) } else { n };
         let mut series: Vec<Lk14Row> = Vec::new();
         for &(nx, ny) in case.uniform.iter().take(take(case.uniform.len())) {
@@ -110,15 +128,49 @@ pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Lk14Row>, Box<dyn std:
         }
         // The reference: the finest uniform run.
         let finest = take(case.uniform.len()) - 1;
-        let reference = series[finest].energy;
+        let (reference, shape) = (series[finest].energy, series[finest].grid.clone());
+        let mean = shape.iter().map(|x| x.z).sum::<f64>() / shape.len() as f64;
+        let height = (shape.iter().map(|x| (x.z - mean).powi(2)).sum::<f64>() / shape.len() as f64).sqrt();
         for r in &mut series {
             r.energy_error = r.energy / reference - 1.0;
+            let d2 = r.grid.iter().zip(&shape).map(|(a, b)| a.distance_squared(*b)).sum::<f64>();
+            r.shape_error = (d2 / shape.len() as f64).sqrt() / height;
+        }
+        let uniform: Vec<(f64, f64)> = series[..finest].iter().map(|r| (r.shape_error, r.ms_per_frame)).collect();
+        let energy: Vec<(f64, f64)> = series[..finest].iter().map(|r| (r.energy_error.abs(), r.ms_per_frame)).collect();
+        for r in &mut series[finest + 1..] {
+            r.time_ratio = time_at_error(&uniform, r.shape_error).map(|(t, upper)| (r.ms_per_frame / t, upper));
+            r.time_ratio_energy =
+                time_at_error(&energy, r.energy_error.abs()).map(|(t, upper)| (r.ms_per_frame / t, upper));
         }
         rows.extend(series);
     }
     write(out, &rows)?;
     plot(&out.join("speed_error_lk14.svg"), &rows)?;
     Ok(rows)
+}
+
+/// The uniform runs' time at `error`: log-log interpolation between the two runs around it,
+/// or, when `error` is below them all, the most accurate one's time (flagged: the uniform mesh
+/// that reaches `error` costs more). None when every uniform run is more accurate.
+fn time_at_error(uniform: &[(f64, f64)], error: f64) -> Option<(f64, bool)> {
+    let best = uniform.iter().copied().min_by(|a, b| a.0.total_cmp(&b.0))?;
+    if error < best.0 {
+        return Some((best.1, true));
+    }
+    uniform.windows(2).find_map(|w| {
+        let ((e0, t0), (e1, t1)) = (w[0], w[1]);
+        let inside = (e0 >= error && error >= e1) || (e1 >= error && error >= e0);
+        let s = if e0 == e1 { 0.0 } else { (error / e0).ln() / (e1 / e0).ln() };
+        inside.then(|| ((t0.ln() + s * (t1 / t0).ln()).exp(), false))
+    })
+}
+
+/// The scene text with its perturbation made a Perlin field of `cell` (mm).
+fn smooth_perturbation(text: &str, cell: f64) -> String {
+    let start = text.find("perturbation: Some((").expect("a perturbed scene");
+    let end = start + text[start..].find("))").expect("perturbation end");
+    format!("{}, cell: {cell}{}", &text[..end], &text[end..])
 }
 
 /// The scene text with the swept layer's cells replaced and `extra` fields added to it.
@@ -166,6 +218,7 @@ fn run(
     let size = uv.iter().fold(glam::DVec2::ZERO, |m, u| m.max(*u));
     let cells = ((size.x / 0.1e-3).round() as usize, ((size.y / 0.5e-3).round() as usize).max(2));
     let (guv, gx) = resample_on_grid(&uv, &x, &faces, cells);
+    let grid = gx.clone();
     let peaks = row_peaks(&gx, &guv, 0, 0.05);
     let wavelength_error = case.lambda_mm.map_or(f64::NAN, |lambda| {
         let mut errors = peaks.iter().map(|p| 1e3 * p.wavelength / lambda - 1.0);
@@ -183,7 +236,11 @@ fn run(
         newton_iterations: iterations,
         wavelength_error,
         energy_error: 0.0,
+        shape_error: 0.0,
+        time_ratio: None,
+        time_ratio_energy: None,
         energy,
+        grid,
     };
     eprintln!("{}: {}: {:.0} ms/frame, {:.0} vertices", row.series, row.setting, row.ms_per_frame, row.mean_vertices);
     Ok(row)
@@ -192,45 +249,64 @@ fn run(
 fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
     let mut md = String::from(
         "# Speed against error, LK14 (VALIDATION.md F, issue 5)\n\n\
-         Regenerate: `cargo run --release --bin skinsim -- report --out report`.\n\
+         Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --out report`.\n\
          Uniform meshes of the swept layer against adaptive ones (REMESH.md) started from the coarsest uniform \
-         mesh. Wavelength error: the dominant peak (case 10) or the peak nearest lambda_2 (case 11) against the \
-         kernel wavelength; wrinkles under kernels are multistable, so this error is a mode selection more than \
-         a discretization error. Adaptive runs start from the coarsest uniform mesh, and the pattern is selected \
-         while the sheet is still flat, so on that mesh: they inherit its mode. Energy error: the final total \
-         energy against the finest uniform run of the case. Vertices: the swept layer's, mean over the frames. \
-         Time: wall per frame on this machine.\n\n\
-         | series | setting | vertices | ms / frame | Newton iterations | wavelength error | energy error |\n\
-         | --- | --- | --- | --- | --- | --- | --- |\n",
+         mesh; the first frame is solved on that mesh, then it is remeshed every few frames. Every run of a case \
+         has the same imperfection, a Perlin field of half the wavelength in material space, so every mesh \
+         selects the same wrinkle mode. Shape error: RMS distance between the final layer and the finest uniform \
+         run's, on a grid in material space, over the reference's RMS wrinkle height. Time ratios (adaptive): \
+         time per frame over the uniform time at the same shape (or |energy|) error, interpolated log-log between \
+         the uniform runs in their order (`<`: no coarser uniform run is as accurate, so the ratio is at most \
+         this; blank: every uniform run is more accurate). Wavelength error: the \
+         dominant peak (case 10) or the peak nearest lambda_2 (case 11) against the kernel wavelength. Energy \
+         error: the final total energy against the reference's. Vertices: the swept layer's, mean over the \
+         frames. Time: wall per frame on this machine, one run.\n\n\
+         | series | setting | vertices | ms / frame | Newton iterations | shape error | time ratio (shape) | \
+         wavelength error | energy error | time ratio (energy) |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
-    let mut csv =
-        String::from("series,setting,mean_vertices,ms_per_frame,newton_iterations,wavelength_error,energy_error\n");
+    let mut csv = String::from(
+        "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
+         wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound\n",
+    );
     for r in rows {
+        let show = |t: Option<(f64, bool)>| match t {
+            Some((q, true)) => format!("< {q:.2}"),
+            Some((q, false)) => format!("{q:.2}"),
+            None => String::new(),
+        };
+        let (ratio, ratio_energy) = (show(r.time_ratio), show(r.time_ratio_energy));
+        let wavelength = if r.wavelength_error.is_nan() {
+            "n/a".to_string()
+        } else {
+            format!("{:+.2} %", 100.0 * r.wavelength_error)
+        };
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.0} | {} | {} | {:+.3} % |",
+            "| {} | {} | {:.0} | {:.0} | {} | {:.3} | {ratio} | {wavelength} | {:+.3} % | {ratio_energy} |",
             r.series,
             r.setting,
             r.mean_vertices,
             r.ms_per_frame,
             r.newton_iterations,
-            if r.wavelength_error.is_nan() {
-                "n/a".to_string()
-            } else {
-                format!("{:+.2} %", 100.0 * r.wavelength_error)
-            },
+            r.shape_error,
             100.0 * r.energy_error
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{:.6}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{}",
             r.series,
             r.setting,
             r.mean_vertices,
             r.ms_per_frame,
             r.newton_iterations,
+            r.shape_error,
+            r.time_ratio.map_or(f64::NAN, |t| t.0),
+            r.time_ratio.is_some_and(|t| t.1),
             r.wavelength_error,
-            r.energy_error
+            r.energy_error,
+            r.time_ratio_energy.map_or(f64::NAN, |t| t.0),
+            r.time_ratio_energy.is_some_and(|t| t.1),
         );
     }
     std::fs::write(out.join("speed_error_lk14.md"), md)?;
@@ -240,10 +316,10 @@ fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
 fn plot(path: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>> {
     // (the reference run has zero error: drawn at the floor)
     let points: Vec<(&str, f64, f64)> =
-        rows.iter().map(|r| (r.series.as_str(), r.energy_error.abs().max(1e-5), r.ms_per_frame)).collect();
+        rows.iter().map(|r| (r.series.as_str(), r.shape_error.max(1e-3), r.ms_per_frame)).collect();
     let labels = (
-        "LK14: time per frame against energy error (log-log)",
-        "|energy error| against the finest uniform run",
+        "LK14: time per frame against shape error (log-log)",
+        "shape error against the finest uniform run (RMS distance / RMS height)",
         "ms per frame",
     );
     crate::report::log_log_plot(path, labels, &points)
@@ -261,5 +337,23 @@ mod tests {
         assert!(out.contains("cells: (64, 9), pattern: Equilateral, z: 0.5"), "{out}");
         assert!(out.contains("bending: Some((model: Tan)), remesh: X),\n]"), "{out}");
         assert!(out.contains("cells: (9, 9)"));
+    }
+
+    #[test]
+    fn the_perturbation_becomes_a_perlin_field() {
+        let text = "solver: (perturbation: Some((amplitude: 0.002, seed: 3))),";
+        assert_eq!(
+            smooth_perturbation(text, 1.5),
+            "solver: (perturbation: Some((amplitude: 0.002, seed: 3, cell: 1.5))),"
+        );
+    }
+
+    #[test]
+    fn the_uniform_time_at_an_error_is_interpolated_log_log() {
+        let uniform = [(1.0, 100.0), (0.1, 1000.0), (0.01, 10000.0)];
+        let (t, upper) = time_at_error(&uniform, 0.1f64.sqrt()).unwrap();
+        assert!((t / 1000f64.sqrt() / 10.0 - 1.0).abs() < 1e-12 && !upper, "{t}");
+        assert_eq!(time_at_error(&uniform, 0.001), Some((10000.0, true)));
+        assert_eq!(time_at_error(&uniform, 2.0), None);
     }
 }
