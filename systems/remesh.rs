@@ -7,7 +7,8 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
-use skinsim::mesh::remesh::{remesh, RemeshVertex};
+use skinsim::mesh::imperfection::remesh_under;
+use skinsim::mesh::remesh::RemeshVertex;
 use skinsim::model::*;
 
 pub fn remesh_layers(world: &mut World) {
@@ -66,7 +67,8 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
         .collect();
     let tris: Vec<[Entity; 3]> = old_faces.iter().map(|&f| world.get::<FaceVerts>(f).expect("face").0).collect();
     let faces: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| index[&v])).collect();
-    let out = remesh(&input, &faces, &settings.params);
+    let imperfection = world.get::<LayerImperfection>(layer).map(|i| i.0);
+    let out = remesh_under(imperfection.as_ref(), input, &faces, &settings.params);
     let changed = out.stats.splits + out.stats.collapses + out.stats.flips > 0;
     let report = RemeshReport {
         size_max: settings.params.size_max,

@@ -324,4 +324,21 @@ fn a_smooth_perturbation_is_the_same_on_every_mesh() {
     }
     assert_eq!(shared, coarse.len(), "every coarse vertex is a fine one");
     assert!(spread > 2e-7, "the field perturbs: {spread}");
+
+    // A remesh gives its new vertices the field at their own material point.
+    let mut sim = Simulation::new(&smooth("cells: (24, 14), pattern: Equilateral, z: 0.5"));
+    let dermis = layer(&mut sim, "dermis");
+    let imperfection = sim.world.get::<LayerImperfection>(dermis).expect("kept on a remeshed layer").0;
+    let before: HashSet<Entity> = sim.world.get::<LayerVertices>(dermis).unwrap().entities().iter().copied().collect();
+    for _ in 0..4 {
+        sim.step();
+    }
+    let w = &sim.world;
+    let verts = w.get::<LayerVertices>(dermis).unwrap().entities().to_vec();
+    let new: Vec<Entity> = verts.into_iter().filter(|v| !before.contains(v)).collect();
+    for &v in &new {
+        let (uv, z) = (w.get::<MaterialPos>(v).unwrap().0, w.get::<RestPos>(v).unwrap().0.z);
+        assert!((z - 0.5e-3 - imperfection.at(uv)).abs() < 1e-12, "at {uv}: {z} against {}", imperfection.at(uv));
+    }
+    assert!(new.len() > 10, "{} new vertices", new.len());
 }

@@ -2,6 +2,7 @@
 
 pub mod bodies;
 pub mod generate;
+pub mod imperfection;
 pub mod obj;
 pub mod remesh;
 pub mod shading;

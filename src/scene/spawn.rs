@@ -10,6 +10,7 @@ use rand::{Rng, SeedableRng};
 use super::build::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
 use super::schema::Perturbation;
 use crate::mesh;
+use crate::mesh::imperfection::Imperfection;
 use crate::model::*;
 use crate::physics::hinge::HingeRest;
 use crate::physics::membrane::MembraneRest;
@@ -73,6 +74,10 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         let owners: Vec<Option<Entity>> =
             l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
         let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li], &mass[li], &owners);
+        // A remesh gives its new vertices the same smooth imperfection.
+        if let (Some((q, _)), Some(cell), Some(_)) = (&rng, p.solver.perturbation.and_then(|q| q.cell), l.remesh) {
+            world.entity_mut(layer).insert(LayerImperfection(Imperfection::new(q.amplitude, cell, q.seed)));
+        }
         all_rest.extend_from_slice(l.mesh.rest());
         layers.push(layer);
         layer_vertices.push(verts);
@@ -414,22 +419,14 @@ fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
 /// uniform amount in [-a, a], in the rest shape itself, so the structure keeps it in equilibrium
 /// (a perturbation of the initial positions alone is solved away at the first frame).
 fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], q: &Perturbation, rng: &mut rand_pcg::Pcg64) {
-    // (a smooth field depends on the material point only, not on the mesh)
-    let field = q.cell.map(|cell| (noise::Perlin::new((q.seed ^ (q.seed >> 32)) as u32), cell));
-    let mut normal = vec![DVec3::ZERO; m.rest.len()];
-    for f in &m.faces {
-        let q = |i: usize| m.rest[f[i] as usize];
-        let n = (q(1) - q(0)).cross(q(2) - q(0));
-        for &v in f {
-            normal[v as usize] += n;
-        }
+    if let Some(cell) = q.cell {
+        let smooth = Imperfection::new(q.amplitude, cell, q.seed);
+        return smooth.apply(1.0, &mut m.rest, &m.uv, &m.faces, fixed, |_| true);
     }
+    let normal = mesh::remesh::sizing::vertex_normals(&m.rest, &m.faces);
     for (i, p) in m.rest.iter_mut().enumerate() {
-        let u: f64 = match &field {
-            Some((perlin, cell)) => noise::NoiseFn::get(perlin, (m.uv[i] / *cell).to_array()).clamp(-1.0, 1.0),
-            None => rng.random_range(-1.0..=1.0),
-        };
-        let mut d = normal[i].normalize_or_zero() * (u * q.amplitude);
+        let u: f64 = rng.random_range(-1.0..=1.0);
+        let mut d = normal[i] * (u * q.amplitude);
         for k in 0..3 {
             if fixed[i][k] {
                 d[k] = 0.0;

@@ -1,0 +1,99 @@
+//! A smooth geometric imperfection: a normal offset of amplitude x Perlin noise over material
+//! space (the `cell` form of a scene's perturbation). It depends on the material point only, so
+//! every mesh of a layer, and every vertex a remesh creates, carries the same imperfection.
+
+use glam::{DVec2, DVec3};
+use noise::NoiseFn;
+
+use super::remesh::sizing::vertex_normals;
+use super::remesh::{remesh, RemeshParams, RemeshVertex, Remeshed};
+
+#[derive(Clone, Copy, Debug)]
+pub struct Imperfection {
+    /// Largest offset (m).
+    pub amplitude: f64,
+    /// Perlin cell (m).
+    pub cell: f64,
+    perlin: noise::Perlin,
+}
+
+impl Imperfection {
+    pub fn new(amplitude: f64, cell: f64, seed: u64) -> Self {
+        Self { amplitude, cell, perlin: noise::Perlin::new((seed ^ (seed >> 32)) as u32) }
+    }
+
+    /// The offset along the normal at a material point, in [-amplitude, amplitude].
+    pub fn at(&self, uv: DVec2) -> f64 {
+        self.amplitude * self.perlin.get((uv / self.cell).to_array()).clamp(-1.0, 1.0)
+    }
+
+    /// Adds (`sign` 1) or removes (-1) the offsets of the vertices `which` selects, along the
+    /// surface's vertex normals, leaving prescribed coordinates alone.
+    pub fn apply(
+        &self,
+        sign: f64,
+        rest: &mut [DVec3],
+        uv: &[DVec2],
+        faces: &[[u32; 3]],
+        fixed: &[[bool; 3]],
+        which: impl Fn(usize) -> bool,
+    ) {
+        let normals = vertex_normals(rest, faces);
+        for (i, n) in normals.into_iter().enumerate().filter(|(i, _)| which(*i)) {
+            let d = n * (sign * self.at(uv[i]));
+            for k in (0..3).filter(|&k| !fixed[i][k]) {
+                rest[i][k] += d[k];
+            }
+        }
+    }
+}
+
+/// Remeshes the layer's rest shape without its smooth imperfection (if any), which new vertices
+/// then get at their own material point: interpolating it from the parents would resample the
+/// imperfection on the old mesh. (Survivors keep their rest positions.)
+pub fn remesh_under(
+    imperfection: Option<&Imperfection>,
+    mut input: Vec<RemeshVertex>,
+    faces: &[[u32; 3]],
+    p: &RemeshParams,
+) -> Remeshed {
+    let Some(imp) = imperfection else { return remesh(&input, faces, p) };
+    let split = |v: &[RemeshVertex]| -> (Vec<DVec3>, Vec<DVec2>, Vec<[bool; 3]>) {
+        (v.iter().map(|v| v.rest).collect(), v.iter().map(|v| v.uv).collect(), v.iter().map(|v| v.fixed).collect())
+    };
+    let (original, uv, fixed) = split(&input);
+    let mut rest = original.clone();
+    imp.apply(-1.0, &mut rest, &uv, faces, &fixed, |_| true);
+    input.iter_mut().zip(rest).for_each(|(v, r)| v.rest = r);
+    let mut out = remesh(&input, faces, p);
+    let (mut rest, uv, fixed) = split(&out.vertices);
+    imp.apply(1.0, &mut rest, &uv, &out.faces, &fixed, |i| out.vertices[i].origin.is_none());
+    for (v, r) in out.vertices.iter_mut().zip(rest) {
+        v.rest = v.origin.map_or(r, |i| original[i as usize]);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_are_bounded_smooth_and_removable() {
+        let imp = Imperfection::new(1e-3, 0.5, 7);
+        let samples: Vec<f64> = (0..400).map(|i| imp.at(DVec2::new(0.013 * i as f64, 0.29))).collect();
+        assert!(samples.iter().all(|s| s.abs() <= 1e-3) && samples.iter().any(|s| s.abs() > 2e-4));
+        // Smooth: neighbouring samples 0.013 apart (a fortieth of a cell) differ little.
+        assert!(samples.windows(2).all(|w| (w[1] - w[0]).abs() < 2e-4));
+        // A flat sheet: add then remove gives the sheet back; fixed coordinates stay.
+        let uv = [DVec2::ZERO, DVec2::new(1.0, 0.1), DVec2::new(0.2, 1.3)];
+        let flat: Vec<DVec3> = uv.iter().map(|u| u.extend(0.0)).collect();
+        let fixed = [[false; 3], [false; 3], [false, false, true]];
+        let mut rest = flat.clone();
+        imp.apply(1.0, &mut rest, &uv, &[[0, 1, 2]], &fixed, |_| true);
+        assert_eq!(rest[2], flat[2]);
+        assert!((rest[1].z - imp.at(uv[1])).abs() < 1e-15);
+        imp.apply(-1.0, &mut rest, &uv, &[[0, 1, 2]], &fixed, |_| true);
+        assert!(rest.iter().zip(&flat).all(|(a, b)| a.distance(*b) < 1e-15));
+    }
+}
