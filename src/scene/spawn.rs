@@ -416,7 +416,8 @@ fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
 }
 
 /// A geometric imperfection: free shell vertices moved along their rest normal by a seeded
-/// uniform amount in [-a, a], in the rest shape itself, so the structure keeps it in equilibrium
+/// uniform amount in [-a, a] (or, with a `cell`, by the smooth field of `Imperfection`), in the
+/// rest shape itself, so the structure keeps it in equilibrium
 /// (a perturbation of the initial positions alone is solved away at the first frame).
 fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], q: &Perturbation, rng: &mut rand_pcg::Pcg64) {
     if let Some(cell) = q.cell {
