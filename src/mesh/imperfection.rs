@@ -28,7 +28,8 @@ impl Imperfection {
     }
 
     /// Adds (`sign` 1) or removes (-1) the offsets of the vertices `which` selects, along the
-    /// surface's vertex normals, leaving prescribed coordinates alone.
+    /// surface's vertex normals, leaving prescribed coordinates alone. (Removal uses the
+    /// perturbed surface's normals, so it undoes an addition to first order in the amplitude.)
     pub fn apply(
         &self,
         sign: f64,
@@ -85,7 +86,8 @@ mod tests {
         assert!(samples.iter().all(|s| s.abs() <= 1e-3) && samples.iter().any(|s| s.abs() > 2e-4));
         // Smooth: neighbouring samples 0.013 apart (a fortieth of a cell) differ little.
         assert!(samples.windows(2).all(|w| (w[1] - w[0]).abs() < 2e-4));
-        // A flat sheet: add then remove gives the sheet back; fixed coordinates stay.
+        // A flat sheet: add then remove gives the sheet back (to second order); fixed coordinates
+        // stay.
         let uv = [DVec2::ZERO, DVec2::new(1.0, 0.1), DVec2::new(0.2, 1.3)];
         let flat: Vec<DVec3> = uv.iter().map(|u| u.extend(0.0)).collect();
         let fixed = [[false; 3], [false; 3], [false, false, true]];
@@ -94,6 +96,8 @@ mod tests {
         assert_eq!(rest[2], flat[2]);
         assert!((rest[1].z - imp.at(uv[1])).abs() < 1e-15);
         imp.apply(-1.0, &mut rest, &uv, &[[0, 1, 2]], &fixed, |_| true);
-        assert!(rest.iter().zip(&flat).all(|(a, b)| a.distance(*b) < 1e-15));
+        // (removal uses the perturbed surface's normals: exact to first order in the amplitude)
+        let error = rest.iter().zip(&flat).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
+        assert!(error < 1e-3 * 1e-3, "{error}"); // amplitude^2 over a unit triangle (measured 1.1e-7)
     }
 }
