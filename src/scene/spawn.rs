@@ -75,8 +75,10 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
             l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
         let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li], &mass[li], &owners);
         // A remesh gives its new vertices the same smooth imperfection.
-        if let (Some((q, _)), Some(cell), Some(_)) = (&rng, p.solver.perturbation.and_then(|q| q.cell), l.remesh) {
-            world.entity_mut(layer).insert(LayerImperfection(Imperfection::new(q.amplitude, cell, q.seed)));
+        if let (Some(q), Some(_)) = (p.solver.perturbation, l.remesh) {
+            if let Some(cell) = q.cell {
+                world.entity_mut(layer).insert(LayerImperfection(Imperfection::new(q.amplitude, cell, q.seed)));
+            }
         }
         all_rest.extend_from_slice(l.mesh.rest());
         layers.push(layer);

@@ -32,9 +32,9 @@ pub struct Lk14Row {
     /// Final shape against the reference's: RMS distance over a grid in material space, over
     /// the reference's RMS wrinkle height.
     pub shape_error: f64,
-    /// Adaptive runs: this run's time over the uniform time at the same shape error (log-log
-    /// between the uniform runs); `upper` when no coarser uniform run is as accurate (the ratio is
-    /// then at most this).
+    /// Adaptive runs: this run's time over the uniform time at the same shape error
+    /// (`time_at_error`); `upper` when no uniform run but the reference is as accurate (the ratio
+    /// is then at most this).
     pub time_ratio: Option<(f64, bool)>,
     /// The same at the same |energy error|.
     pub time_ratio_energy: Option<(f64, bool)>,
@@ -227,7 +227,6 @@ fn run(
     let size = uv.iter().fold(glam::DVec2::ZERO, |m, u| m.max(*u));
     let cells = ((size.x / 0.1e-3).round() as usize, ((size.y / 0.5e-3).round() as usize).max(2));
     let (guv, gx) = resample_on_grid(&uv, &x, &faces, cells);
-    let grid = gx.clone();
     let peaks = row_peaks(&gx, &guv, 0, 0.05);
     let wavelength_error = case.lambda_mm.map_or(f64::NAN, |lambda| {
         let mut errors = peaks.iter().map(|p| 1e3 * p.wavelength / lambda - 1.0);
@@ -249,7 +248,7 @@ fn run(
         time_ratio: None,
         time_ratio_energy: None,
         energy,
-        grid,
+        grid: gx,
     };
     eprintln!("{}: {}: {:.0} ms/frame, {:.0} vertices", row.series, row.setting, row.ms_per_frame, row.mean_vertices);
     Ok(row)
