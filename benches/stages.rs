@@ -11,7 +11,7 @@ fn main() {
         .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/strip_wrinkles.ron"));
     let scene = skinsim::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     let mut sim = Simulation::new(&scene);
-    let mut totals = [0.0f64; 10];
+    let mut totals = [0.0f64; Stage::ALL.len()];
     let mut total = 0.0;
     let mut iterations = 0;
     let mut inner = [0.0f64; 3];

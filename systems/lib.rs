@@ -12,6 +12,7 @@ mod log_mesh;
 pub mod properties;
 pub mod remesh;
 pub mod schedule;
+pub mod settle;
 pub mod simulation;
 pub mod solve;
 pub mod writeback;

@@ -110,6 +110,9 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
         let tri = f.map(|i| ent[i as usize]);
         if by_key.remove(&key(tri)).is_none() {
             world.spawn((FaceVerts(tri), FaceOf(layer)));
+            if settings.settle {
+                tri.iter().for_each(|&v| _ = world.entity_mut(v).insert(Unsettled));
+            }
         }
     }
     // Edges by endpoints and, for hinges, the opposite vertices: a changed quad gets a new edge.

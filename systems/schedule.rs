@@ -1,14 +1,15 @@
-//! The frame: ten chained stages (ARCHITECTURE.md 2). A stage runs only when the scene declares
+//! The frame: eleven chained stages (ARCHITECTURE.md 2). A stage runs only when the scene declares
 //! what it works on: the constraint stages only with kernels, the walk only with anchors.
-//! Remesh and PropertyResample run only for layers with `RemeshSettings`.
+//! Remesh and PropertyResample run only for layers with `RemeshSettings`, Settle only after a
+//! remesh changed a face.
 
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
-use skinsim::model::{Anchor, Kernel, PatchCaptures, PatchMotion, RemeshSettings, Stage, Timings};
+use skinsim::model::{Anchor, Kernel, PatchCaptures, PatchMotion, RemeshSettings, Stage, Timings, Unsettled};
 
 use crate::log::{log_frame, wants_logging, RerunSink};
 use crate::log_anchors::log_anchors;
-use crate::{anchors, assemble, blend_shapes, capture, kernels, properties, remesh, solve, writeback};
+use crate::{anchors, assemble, blend_shapes, capture, kernels, properties, remesh, settle, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Frame;
@@ -29,6 +30,7 @@ pub fn build_schedule() -> Schedule {
             StageSet(Stage::ConstraintAdjust).run_if(any_with_component::<Kernel>),
             StageSet(Stage::AnchorWalk).run_if(any_with_component::<Anchor>),
             StageSet(Stage::Assemble),
+            StageSet(Stage::Settle).run_if(any_with_component::<Unsettled>),
             StageSet(Stage::Solve),
             StageSet(Stage::Writeback),
             StageSet(Stage::Log).run_if(wants_logging),
@@ -42,6 +44,7 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(timed(Stage::ConstraintAdjust, kernels::adjust_kernels));
     s.add_systems(timed(Stage::AnchorWalk, anchors::walk_anchors));
     s.add_systems(timed(Stage::Assemble, assemble::gather_bodies));
+    s.add_systems(timed(Stage::Settle, settle::settle_remeshed));
     s.add_systems(timed(Stage::Solve, solve::solve_patches));
     s.add_systems(timed(
         Stage::Writeback,

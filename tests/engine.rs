@@ -44,6 +44,7 @@ fn stages_run_in_order_and_only_what_a_scene_declares() {
         Stage::ConstraintResample,
         Stage::ConstraintAdjust,
         Stage::AnchorWalk,
+        Stage::Settle,
     ];
     let all: Vec<Stage> = Stage::ALL.iter().copied().filter(|s| !skipped.contains(s)).collect();
     assert_eq!(
@@ -60,6 +61,14 @@ fn stages_run_in_order_and_only_what_a_scene_declares() {
     let ran = &sim.world.resource::<Ran>().0;
     let order = [Stage::BlendShapes, Stage::Remesh, Stage::PropertyResample, Stage::ConstraintResample];
     assert_eq!(ran[..4], order, "{ran:?}");
+    // Settle only in a frame whose remesh changed a face (the first frame keeps the scene's
+    // mesh), between Assemble and Solve.
+    assert!(!ran.contains(&Stage::Settle), "{ran:?}");
+    sim.world.resource_mut::<Ran>().0.clear();
+    sim.step();
+    let ran = &sim.world.resource::<Ran>().0;
+    let at = |s: Stage| ran.iter().position(|r| *r == s).unwrap_or_else(|| panic!("{s:?} in {ran:?}"));
+    assert_eq!((at(Stage::Assemble) + 1, at(Stage::Settle) + 1), (at(Stage::Settle), at(Stage::Solve)), "{ran:?}");
 
     // Anchors: the walk runs, between the constraint stages and Assemble.
     let mut sim = Simulation::new(&load("kck18/crease_quick.ron"));

@@ -98,6 +98,8 @@ pub struct TopologyEpoch(pub u64);
 pub struct RemeshSettings {
     pub params: crate::mesh::remesh::RemeshParams,
     pub every: u32,
+    /// Settle the vertices of changed faces after a remesh (`Unsettled`, the Settle stage).
+    pub settle: bool,
 }
 
 /// What the last remesh of a layer did, and the layer's size after it.
@@ -112,6 +114,10 @@ pub struct RemeshReport {
 }
 
 // ---------------------------------------------------------------- vertices
+
+/// A vertex of a face a remesh created, to be relaxed by the Settle stage before the solve.
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct Unsettled;
 
 /// Vertex -> Layer.
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]

@@ -24,13 +24,15 @@ pub enum Stage {
     ConstraintAdjust,
     AnchorWalk,
     Assemble,
+    /// After a remesh: the touched vertices relaxed before the solve (REMESH.md "Split").
+    Settle,
     Solve,
     Writeback,
     Log,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 10] = [
+    pub const ALL: [Stage; 11] = [
         Stage::BlendShapes,
         Stage::Remesh,
         Stage::PropertyResample,
@@ -38,6 +40,7 @@ impl Stage {
         Stage::ConstraintAdjust,
         Stage::AnchorWalk,
         Stage::Assemble,
+        Stage::Settle,
         Stage::Solve,
         Stage::Writeback,
         Stage::Log,
@@ -52,6 +55,7 @@ impl Stage {
             Stage::ConstraintAdjust => "constraint_adjust",
             Stage::AnchorWalk => "anchor_walk",
             Stage::Assemble => "assemble",
+            Stage::Settle => "settle",
             Stage::Solve => "solve",
             Stage::Writeback => "writeback",
             Stage::Log => "log",
@@ -62,13 +66,13 @@ impl Stage {
 /// Wall time per stage in the current frame (ms), reset at the start of each frame.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct Timings {
-    pub ms: [f64; 10],
+    pub ms: [f64; 11],
     started: Option<std::time::Instant>,
 }
 
 impl Timings {
     pub fn reset(&mut self) {
-        self.ms = [0.0; 10];
+        self.ms = [0.0; 11];
         self.started = None;
     }
     pub fn begin(&mut self) {

@@ -751,7 +751,7 @@ impl Builder {
             refine_velocity: r.refine_velocity.map(|v| v * len),
             ..stated
         };
-        Ok(crate::model::RemeshSettings { params, every: r.every })
+        Ok(crate::model::RemeshSettings { params, every: r.every, settle: r.settle })
     }
 
     /// A material with its preset's values filled in where the scene states none (in the

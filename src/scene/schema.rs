@@ -319,6 +319,15 @@ pub struct RemeshSpec {
     /// (only to measure the energy jump the curved placement avoids).
     #[serde(default = "default_curved_splits")]
     pub curved_splits: bool,
+    /// Relax the vertices of every changed face on the layer's own energy before the frame's
+    /// solve (default); false leaves them where the operations put them (only to measure the
+    /// jump settling avoids).
+    #[serde(default = "default_settle")]
+    pub settle: bool,
+}
+
+fn default_settle() -> bool {
+    true
 }
 
 fn default_curved_splits() -> bool {

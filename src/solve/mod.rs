@@ -10,6 +10,7 @@ pub mod linear;
 pub mod newton;
 pub mod ordering;
 pub mod pattern;
+pub mod settle;
 
 pub use body::{AnchorElem, Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};
