@@ -21,7 +21,7 @@ pub fn settle_remeshed(
         if which.is_empty() {
             continue;
         }
-        let s = settle(&body.elements, &mut body.x, &body.fixed, &body.tie, &which);
+        let s = settle(&body.elements, &body.constraints, &mut body.x, &body.fixed, &body.tie, &which);
         tracing::debug!(
             vertices = s.vertices,
             sweeps = s.sweeps,

@@ -147,13 +147,13 @@ fn jump_at_remesh(edits: &[(&str, &str)], at: usize) -> (f64, f64) {
 /// - the energy jump right after the first remesh of a 12 x 7 start wrinkled by the whole
 ///   compression in frame 1, refined at frame 2: split midpoints on the straight edge, on the
 ///   curved surface, and on the curved surface then settled (the default). Measured +1.68,
-///   +0.069 and -0.15 of the energy: settling starts the solve below the last frame's energy;
+///   +0.069 and -0.12 of the energy: settling starts the solve below the last frame's energy;
 /// - the constraint jump (LK14 4.2): compressed over three frames and held, remeshed every
-///   frame, at frame 5: with the kernel adjustment the constraints move 6.8e-5 of the patch
-///   size, without it 4.2e-4. The adjustment removes the first-order jump (the weights'
-///   centroid); what is left is second order (the kernel's second moments over a wrinkled
-///   surface) plus the settle's motion, which the adjustment, run before it, does not see
-///   (3.0e-5 without settling).
+///   frame, at frame 5: with the kernel adjustment the constraints move 3.0e-5 of the patch
+///   size, without it 3.8e-4. The adjustment removes the first-order jump (the weights'
+///   centroid); what is left is second order, the kernel's second moments over a wrinkled
+///   surface. The settle keeps the kernels' values (without that: 6.8e-5, 0.16 of the raw
+///   jump; the bound below is 0.12).
 #[test]
 fn remesh_jumps_in_energy_and_constraints() {
     let pop = |placement: &str| {
@@ -182,15 +182,15 @@ fn remesh_jumps_in_energy_and_constraints() {
     );
     assert!(pop_curved.abs() < 0.2 * pop_straight.abs(), "{pop_curved} against {pop_straight}");
     assert!(pop_settled <= 0.0 && pop_settled < pop_curved, "{pop_settled} against {pop_curved}");
-    assert!(jump_adjusted < 0.25 * jump_raw, "{jump_adjusted} against {jump_raw}");
+    assert!(jump_adjusted < 0.12 * jump_raw, "{jump_adjusted} against {jump_raw}");
 }
 
 /// Hard case (issue 5 points 3 and 8): the LK14 fig. 3-3 strip (case 10) solved on 4 elements
 /// per wavelength to 8 % compression, then refined about fourfold. Without settling, the
 /// curved midpoints raised the energy 6x and the solve ended in a folded state (dihedral
 /// angles up to 2.45 rad, energy 7x the uniform 192 x 27 run's, 174 Newton iterations in that
-/// frame). Settled: energy x1.15 at the remesh, no fold (largest dihedral angle 0.42 rad, the
-/// uniform run's 0.51), 36 iterations.
+/// frame). Settled: energy x1.26 at the remesh, no fold (largest dihedral angle 0.38 rad, the
+/// uniform run's 0.51).
 #[test]
 fn refining_a_coarse_wrinkled_strip_does_not_fold_it() {
     let mut text = std::fs::read_to_string(scene_path("lk14/fig3_3_e1_h1_quick.ron")).unwrap();
