@@ -5,8 +5,8 @@
 use glam::{DVec2, DVec3};
 use noise::NoiseFn;
 
-use super::remesh::sizing::vertex_normals;
 use super::remesh::{remesh, RemeshParams, RemeshVertex, Remeshed};
+use super::shading::vertex_normals;
 
 #[derive(Clone, Copy, Debug)]
 pub struct Imperfection {

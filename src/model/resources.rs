@@ -66,13 +66,13 @@ impl Stage {
 /// Wall time per stage in the current frame (ms), reset at the start of each frame.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct Timings {
-    pub ms: [f64; 11],
+    pub ms: [f64; Stage::ALL.len()],
     started: Option<std::time::Instant>,
 }
 
 impl Timings {
     pub fn reset(&mut self) {
-        self.ms = [0.0; 11];
+        self.ms = [0.0; Stage::ALL.len()];
         self.started = None;
     }
     pub fn begin(&mut self) {

@@ -426,7 +426,7 @@ fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], q: &Perturbation, rng
         let smooth = Imperfection::new(q.amplitude, cell, q.seed);
         return smooth.apply(1.0, &mut m.rest, &m.uv, &m.faces, fixed, |_| true);
     }
-    let normal = mesh::remesh::sizing::vertex_normals(&m.rest, &m.faces);
+    let normal = mesh::shading::vertex_normals(&m.rest, &m.faces);
     for (i, p) in m.rest.iter_mut().enumerate() {
         let u: f64 = rng.random_range(-1.0..=1.0);
         let mut d = normal[i] * (u * q.amplitude);

@@ -78,7 +78,7 @@ pub fn settle(
         slots.iter().flatten().filter(|s| seen.insert(key(**s))).map(|s| slot_energy(el, x, *s)).sum()
     };
     let mut out = Settled { vertices: free.len(), energy_before: energy_of(x), ..Default::default() };
-    let scale = mean_edge(el, x, &free);
+    let scale = mean_edge(el, x, &local);
     let start: Vec<DVec3> = free.iter().map(|&v| x[v as usize]).collect();
     for _ in 0..SWEEPS {
         out.sweeps += 1;
@@ -237,10 +237,9 @@ fn block<const N: usize>(g: &SVector<f64, N>, h: &SMatrix<f64, N, N>, k: usize) 
 }
 
 /// Mean length of the membrane edges at the settled vertices (the step tolerance's scale).
-fn mean_edge(el: &Elements, x: &[DVec3], free: &[u32]) -> f64 {
-    let set: std::collections::HashSet<u32> = free.iter().copied().collect();
+fn mean_edge(el: &Elements, x: &[DVec3], local: &[u32]) -> f64 {
     let (mut sum, mut n) = (0.0, 0usize);
-    for m in el.membranes.iter().filter(|m| m.v.iter().any(|v| set.contains(v))) {
+    for m in el.membranes.iter().filter(|m| m.v.iter().any(|&v| local[v as usize] != u32::MAX)) {
         for k in 0..3 {
             sum += x[m.v[k] as usize].distance(x[m.v[(k + 1) % 3] as usize]);
             n += 1;

@@ -68,7 +68,7 @@ impl<'a> WorkMesh<'a> {
             }
         }
         let x: Vec<DVec3> = verts.iter().map(|v| v.x).collect();
-        let normals = super::sizing::vertex_normals(&x, faces);
+        let normals = crate::mesh::shading::vertex_normals(&x, faces);
         let mut mesh = WorkMesh {
             p,
             verts,

@@ -4,6 +4,7 @@
 use glam::{DMat2, DVec2, DVec3};
 
 use super::RemeshParams;
+use crate::mesh::shading::vertex_normals;
 use crate::physics::hinge::dihedral_f64;
 
 /// One face's geometry: material-space and world-space corners.
@@ -219,19 +220,6 @@ pub fn vertex_sizing(
         }
     }
     sum.iter().zip(&weight).map(|(m, w)| if *w > 0.0 { *m * (1.0 / w) } else { DMat2::ZERO }).collect()
-}
-
-/// Area-weighted unit vertex normals.
-pub fn vertex_normals(x: &[DVec3], faces: &[[u32; 3]]) -> Vec<DVec3> {
-    let mut n = vec![DVec3::ZERO; x.len()];
-    for f in faces {
-        let p = f.map(|i| x[i as usize]);
-        let fnorm = (p[1] - p[0]).cross(p[2] - p[0]);
-        for &v in f {
-            n[v as usize] += fnorm;
-        }
-    }
-    n.iter().map(|v| v.normalize_or_zero()).collect()
 }
 
 /// The metric length of a material-space edge u between vertices with metrics ma and mb.
