@@ -7,7 +7,8 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
-use skinsim::physics::Lame;
+use skinsim::physics::quadratic_bending::rigidity_of_hinge;
+use skinsim::physics::{BendingElement, Lame, QuadraticBending};
 use skinsim::solve::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 
 pub(crate) type LayerItems<'a> = (
@@ -32,6 +33,7 @@ pub fn gather_bodies(
     layers: Query<LayerItems>,
     vertices: Query<(&Position, &Velocity, &Mass, &Prescribed)>,
     ties: Query<&Tied>,
+    rest: Query<&RestPos>,
     faces: Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
     hinges: Query<(&EdgeVerts, &Hinge)>,
     tets: Query<(&TetVerts, &TetRestShape, Option<&ModulusScale>)>,
@@ -42,7 +44,7 @@ pub fn gather_bodies(
         let key = topology_key(patch_layers, &layers);
         let rebuilt = key != body.topology_key;
         if rebuilt {
-            rebuild(&mut body, patch_layers, &layers, &vertices, &ties, &faces, &hinges, &tets, &springs);
+            rebuild(&mut body, patch_layers, &layers, &vertices, &ties, &faces, &hinges, &tets, &springs, &rest);
             crate::anchors::rebuild_anchor_springs(&mut body, patch_layers, &layers, &anchors);
             body.topology_key = key;
         }
@@ -105,6 +107,7 @@ fn rebuild(
     hinges: &Query<(&EdgeVerts, &Hinge)>,
     tets: &Query<(&TetVerts, &TetRestShape, Option<&ModulusScale>)>,
     springs: &Query<&Spring>,
+    rest: &Query<&RestPos>,
 ) {
     let mut index: HashMap<Entity, u32> = HashMap::new();
     body.vertices.clear();
@@ -162,12 +165,16 @@ fn rebuild(
                 }
             }
         }
-        if let (Some(le), Some(b)) = (ledges, bending) {
-            for &e in le.entities() {
-                if let Ok((ev, h)) = hinges.get(e) {
-                    let v = [idx(&ev.0[0]), idx(&ev.0[1]), idx(&h.opposite[0]), idx(&h.opposite[1])];
-                    let image = h.image.map(|[a, b]| (idx(&a), idx(&b)));
-                    el.hinges.push(HingeElem { v, rest: h.rest, model: b.model, image });
+        if let (Some(le), Some(lf), Some(b)) = (ledges, lfaces, bending) {
+            if b.element == BendingElement::Quadratic {
+                el.quadratic.extend(quadratic_bending(le, lf, &idx, faces, hinges, rest));
+            } else {
+                for &e in le.entities() {
+                    if let Ok((ev, h)) = hinges.get(e) {
+                        let v = [idx(&ev.0[0]), idx(&ev.0[1]), idx(&h.opposite[0]), idx(&h.opposite[1])];
+                        let image = h.image.map(|[a, b]| (idx(&a), idx(&b)));
+                        el.hinges.push(HingeElem { v, rest: h.rest, model: b.model, image });
+                    }
                 }
             }
         }
@@ -194,6 +201,35 @@ fn rebuild(
     body.face_count = face_count;
     body.tet_count = tet_count;
     body.invalidate_pattern();
+}
+
+/// A layer's quadratic bending elements, in packed indices, from its rest positions and its
+/// hinges' stiffness (property maps and scale included).
+fn quadratic_bending(
+    le: &LayerEdges,
+    lf: &LayerFaces,
+    idx: &impl Fn(&Entity) -> u32,
+    faces: &Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
+    hinges: &Query<(&EdgeVerts, &Hinge)>,
+    rest: &Query<&RestPos>,
+) -> QuadraticBending {
+    let at = |e: &Entity| rest.get(*e).expect("vertex").0;
+    let tris: Vec<[u32; 3]> =
+        lf.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|(fv, ..)| fv.0.map(|e| idx(&e))).collect();
+    let mut rest_of: HashMap<u32, DVec3> = HashMap::new();
+    for (fv, ..) in lf.entities().iter().filter_map(|&f| faces.get(f).ok()) {
+        fv.0.iter().for_each(|e| _ = rest_of.insert(idx(e), at(e)));
+    }
+    let rigidity: Vec<([u32; 2], f64)> = le
+        .entities()
+        .iter()
+        .filter_map(|&e| hinges.get(e).ok())
+        .map(|(ev, h)| {
+            let x = [ev.0[0], ev.0[1], h.opposite[0], h.opposite[1]].map(|e| at(&e));
+            ([idx(&ev.0[0]), idx(&ev.0[1])], rigidity_of_hinge(h.rest.weight, x))
+        })
+        .collect();
+    QuadraticBending::build(&tris, |i| rest_of.get(&i).copied().unwrap_or(DVec3::ZERO), &rigidity)
 }
 
 /// The layer's Lame parameters times an element's modulus factor (both scale with E).

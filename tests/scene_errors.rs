@@ -298,3 +298,29 @@ fn a_perturbation_cell_must_be_positive() {
         mentions(&err(&with(bad)), &["solver.perturbation.cell", "> 0"]);
     }
 }
+
+#[test]
+fn quadratic_bending_needs_a_flat_rest() {
+    let quadratic = GOOD.replace("bending: (model: Tan)", "bending: (model: Tan, element: Quadratic)");
+    load_str(&quadratic, Path::new("scene.ron")).unwrap();
+    let curved = quadratic.replace("bending:", "prestrain: (curvature: 0.1), bending:");
+    mentions(&err(&curved), &["layers[1] (\"film\").prestrain.curvature", "flat rest", "element: Hinge"]);
+    let capture = quadratic.replace("drivers: [", r#"drivers: [Capture(layers: ["film"], frame: 1),"#);
+    mentions(&err(&capture), &["drivers[0].layers", "\"film\"", "quadratic", "capture"]);
+    let periodic = quadratic.replace("drivers: [", r#"drivers: [Periodic(layers: ["film"], axis: X),"#);
+    mentions(&err(&periodic), &["drivers[0].layers", "\"film\"", "periodic seam"]);
+    // A rest mesh out of its plane (a folded quad, from an OBJ).
+    let d = dir();
+    std::fs::write(d.join("folded.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0.5\nv 0 1 0\nf 1 2 3\nf 1 3 4\n").unwrap();
+    let text = quadratic
+        .replace(
+            "Grid(size: (4.0, 2.0), cells: (4, 2)),\n                      material",
+            "Obj(path: \"folded.obj\"),\n                      material",
+        )
+        .replace("Attach(layer: \"film\", to: \"base\", stiffness: 0.01),", "");
+    std::fs::write(d.join("folded.ron"), &text).unwrap();
+    mentions(
+        &load(&d.join("folded.ron")).expect_err("curved rest"),
+        &["layers[1] (\"film\").mesh", "flat rest", "leaves its plane"],
+    );
+}

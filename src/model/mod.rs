@@ -85,6 +85,8 @@ pub struct Thickness(pub f64);
 #[derive(Component, Clone, Copy, Debug)]
 pub struct Bending {
     pub model: HingeModel,
+    /// Hinge elements, or quadratic ones built from the hinges' stiffness (D = 6 k_b).
+    pub element: crate::physics::BendingElement,
     pub stiffness: f64,
 }
 

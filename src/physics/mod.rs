@@ -13,12 +13,14 @@ pub mod membrane;
 pub mod prestrain;
 pub mod principal;
 pub mod psd;
+pub mod quadratic_bending;
 pub mod spring;
 pub mod tet;
 
 pub use hinge::{HingeModel, HingeRest};
 pub use material::{ConstitutiveModel, Lame};
 pub use psd::Projection;
+pub use quadratic_bending::{BendingElement, QuadraticBending};
 
 #[cfg(test)]
 mod tests;

@@ -9,7 +9,7 @@ use super::error::SceneError;
 use super::schema::*;
 use crate::mesh::{self, SurfaceMesh, TetMesh};
 use crate::model::{LayerKind, WeightMap};
-use crate::physics::Lame;
+use crate::physics::{BendingElement, Lame};
 
 /// A validated scene with its meshes built, in SI units.
 #[derive(Clone, Debug)]
@@ -362,6 +362,12 @@ impl Builder {
                             self.err(format!("{dat}.layers"), "no vertex on the max side matches one on the min side")
                         );
                     }
+                    if let Some(&li) = layers_i.iter().find(|&&li| quadratic(&layers[li])) {
+                        return Err(self.err(
+                            format!("{dat}.layers"),
+                            format!("\"{}\" bends with the quadratic element, which does not cross a periodic seam (use element: Hinge)", layers[li].name),
+                        ));
+                    }
                     let seams = layers_i
                         .iter()
                         .map(|&li| match (&layers[li].mesh, layers[li].kind) {
@@ -387,6 +393,12 @@ impl Builder {
                         return Err(self.err(
                             format!("{dat}.layers"),
                             format!("\"{}\" is kinematic: it has no rest state to capture", layers[li].name),
+                        ));
+                    }
+                    if let Some(&li) = layers_i.iter().find(|&&li| quadratic(&layers[li])) {
+                        return Err(self.err(
+                            format!("{dat}.layers"),
+                            format!("\"{}\" bends with the quadratic element, which has no rest curvature to capture into", layers[li].name),
                         ));
                     }
                     if let Some(&li) = layers_i.iter().find(|&&li| layers[li].remesh.is_some()) {
@@ -636,7 +648,7 @@ impl Builder {
                 let m = material.unwrap();
                 let h = thickness.unwrap();
                 let d = m.young * h.powi(3) / (12.0 * (1.0 - m.poisson * m.poisson));
-                Some(crate::model::Bending { model: b.model, stiffness: b.scale * d / 6.0 })
+                Some(crate::model::Bending { model: b.model, element: b.element, stiffness: b.scale * d / 6.0 })
             }
             (Some(_), kind) => {
                 return Err(self.err(format!("{at}.bending"), format!("only shells bend ({kind:?} layer)")))
@@ -649,6 +661,9 @@ impl Builder {
             }
             Some(p) => Some(self.prestrain(&format!("{at}.prestrain"), p, l.kind, bending.is_some(), len, &mesh)?),
         };
+        if bending.is_some_and(|b| b.element == BendingElement::Quadratic) {
+            self.quadratic_bending_ok(at, &mesh, prestrain.as_ref(), len)?;
+        }
         let randomize = match &l.randomize {
             None => None,
             Some(_) if l.kind == LayerKind::Kinematic => {
@@ -769,6 +784,35 @@ impl Builder {
         };
         let thickness = m.thickness.or(preset.map(|p| p.2));
         Ok(Resolved { model: m.model.unwrap_or_default(), young, poisson, density: m.density, thickness })
+    }
+
+    /// The quadratic bending element measures curvature from a flat rest state.
+    fn quadratic_bending_ok(
+        &self,
+        at: &str,
+        mesh: &LayerMesh,
+        prestrain: Option<&crate::model::LayerPrestrain>,
+        len: f64,
+    ) -> Result<(), SceneError> {
+        let flat_rest = "the quadratic bending element needs a flat rest state (use element: Hinge)";
+        if prestrain.is_some_and(|p| p.curvature != 0.0) {
+            return Err(self.err(format!("{at}.prestrain.curvature"), flat_rest));
+        }
+        if let LayerMesh::Surface(m) = mesh {
+            let p = &m.rest;
+            let normal = m
+                .faces
+                .iter()
+                .map(|f| (p[f[1] as usize] - p[f[0] as usize]).cross(p[f[2] as usize] - p[f[0] as usize]))
+                .fold(DVec3::ZERO, |a, n| a + n)
+                .normalize_or_zero();
+            let off = p.iter().map(|q| (*q - p[0]).dot(normal).abs()).fold(0.0, f64::max);
+            if normal == DVec3::ZERO || off > 1e-6 * len {
+                return Err(self
+                    .err(format!("{at}.mesh"), format!("{flat_rest}: the rest mesh leaves its plane by {off:.3e} m")));
+            }
+        }
+        Ok(())
     }
 
     fn prestrain(
@@ -1119,6 +1163,10 @@ fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
 
 /// Pairs each vertex on the max side along `axis` with the min-side vertex at the same other
 /// coordinates.
+fn quadratic(layer: &BuiltLayer) -> bool {
+    layer.bending.is_some_and(|b| b.element == BendingElement::Quadratic)
+}
+
 fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
     let (lo, hi) = bbox(rest);
     let tol = 1e-9 * (hi - lo).length().max(1e-300);

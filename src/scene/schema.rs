@@ -528,6 +528,10 @@ fn default_density() -> f64 {
 pub struct BendingSpec {
     #[serde(default)]
     pub model: HingeModel,
+    /// `Hinge` (default) or `Quadratic`: the squared cotangent Laplacian, accurate on irregular
+    /// and anisotropic (remeshed) meshes, for layers with a flat rest state.
+    #[serde(default)]
+    pub element: crate::physics::BendingElement,
     /// Multiplies the calibrated hinge stiffness k_b = D / 6 (PHYSICS.md 1.2).
     #[serde(default = "default_one")]
     pub scale: f64,

@@ -8,7 +8,7 @@ use crate::model::PatchReport;
 use crate::physics::hinge::HingeRest;
 use crate::physics::membrane::MembraneRest;
 use crate::physics::tet::TetRest;
-use crate::physics::{ConstitutiveModel, HingeModel, Lame};
+use crate::physics::{ConstitutiveModel, HingeModel, Lame, QuadraticBending};
 
 use super::constraints::Constraints;
 use super::kkt::KktSystem;
@@ -73,6 +73,8 @@ pub struct AnchorElem<const NV: usize> {
 pub struct Elements {
     pub membranes: Vec<MembraneElem>,
     pub hinges: Vec<HingeElem>,
+    /// Quadratic bending, one element per interior vertex (layers that choose it).
+    pub quadratic: QuadraticBending,
     pub tets: Vec<TetElem>,
     pub springs: Vec<SpringElem>,
     /// Anchors at skin vertices and at skin face barycentres (KCK18 section 3).
@@ -90,7 +92,7 @@ impl Elements {
         let s: f64 = self.springs.iter().map(|e| e.k * length * length).sum();
         let a: f64 =
             self.vertex_anchors.iter().map(|e| e.k).sum::<f64>() + self.face_anchors.iter().map(|e| e.k).sum::<f64>();
-        m + t + h + s + a * length * length
+        m + t + h + self.quadratic.rigidity_sum() + s + a * length * length
     }
 }
 

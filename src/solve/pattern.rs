@@ -21,6 +21,8 @@ pub struct Pattern {
     /// triangle of the local matrix, row-major: p >= q), NONE where a DOF is fixed.
     pub membranes: Vec<u32>,
     pub hinges: Vec<u32>,
+    /// Quadratic bending: per element, per stencil pair (a, b <= a), per coordinate.
+    pub quadratic: Vec<u32>,
     pub tets: Vec<u32>,
     pub springs: Vec<u32>,
     pub vertex_anchors: Vec<u32>,
@@ -86,6 +88,7 @@ impl Pattern {
         };
         elements.membranes.iter().for_each(|e| link(&e.v));
         elements.hinges.iter().for_each(|e| link(&e.v));
+        (0..elements.quadratic.len()).for_each(|i| link(elements.quadratic.stencil(i).0));
         elements.tets.iter().for_each(|e| link(&e.v));
         elements.springs.iter().for_each(|e| link(&e.v));
         elements.face_anchors.iter().for_each(|e| link(&e.v));
@@ -151,6 +154,7 @@ impl Pattern {
             diag,
             membranes: Vec::new(),
             hinges: Vec::new(),
+            quadratic: Vec::new(),
             tets: Vec::new(),
             springs: Vec::new(),
             vertex_anchors: Vec::new(),
@@ -159,6 +163,8 @@ impl Pattern {
         };
         p.membranes = elements.membranes.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.hinges = elements.hinges.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.quadratic =
+            (0..elements.quadratic.len()).flat_map(|i| p.stencil_map(elements.quadratic.stencil(i).0)).collect();
         p.tets = elements.tets.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.springs = elements.springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.vertex_anchors = elements.vertex_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
@@ -166,12 +172,16 @@ impl Pattern {
         p
     }
 
-    /// Position of the (symmetric) entry of DOFs a and b in the values.
-    pub fn position(&self, a: u32, b: u32) -> u32 {
+    /// Position of the (symmetric) entry of DOFs a and b, None outside the pattern.
+    pub fn position_of(&self, a: u32, b: u32) -> Option<u32> {
         let (r, c) = if a >= b { (a, b) } else { (b, a) };
         let (s, e) = (self.col_ptr[c as usize] as usize, self.col_ptr[c as usize + 1] as usize);
-        let k = self.row_idx[s..e].binary_search(&r).expect("pattern holds every element pair");
-        (s + k) as u32
+        self.row_idx[s..e].binary_search(&r).ok().map(|k| (s + k) as u32)
+    }
+
+    /// Position of the (symmetric) entry of DOFs a and b in the values.
+    pub fn position(&self, a: u32, b: u32) -> u32 {
+        self.position_of(a, b).expect("pattern holds every element pair")
     }
 
     fn element_map(&self, verts: &[u32]) -> Vec<u32> {
@@ -188,6 +198,27 @@ impl Pattern {
                 } else {
                     self.position(dp, dq)
                 });
+            }
+        }
+        out
+    }
+
+    /// Scatter map of a stencil whose Hessian is (a scalar matrix) x I3: positions of the
+    /// pairs (a, b <= a), coordinate by coordinate.
+    fn stencil_map(&self, verts: &[u32]) -> Vec<u32> {
+        let mut out = Vec::with_capacity(3 * verts.len() * (verts.len() + 1) / 2);
+        for (a, &va) in verts.iter().enumerate() {
+            for &vb in &verts[..=a] {
+                for k in 0..3 {
+                    let (da, db) = (self.dof[3 * va as usize + k], self.dof[3 * vb as usize + k]);
+                    out.push(if da == NONE || db == NONE {
+                        NONE
+                    } else if va != vb && da == db {
+                        self.position(da, db) | DOUBLE
+                    } else {
+                        self.position(da, db)
+                    });
+                }
             }
         }
         out

@@ -12,6 +12,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use skinsim::physics::BendingElement;
 use skinsim::scene;
 use skinsim_systems::Simulation;
 
@@ -25,6 +26,8 @@ pub struct Lk14Row {
     pub mean_vertices: f64,
     pub ms_per_frame: f64,
     pub newton_iterations: u32,
+    /// Frames whose Newton solve stopped at its iteration limit (their state is kept).
+    pub unconverged_frames: u32,
     /// Dominant (case 10) or nearest-to-lambda_2 (case 11) wavelength against the kernels'.
     pub wavelength_error: f64,
     /// Final energy against the series' reference (the finest uniform run).
@@ -103,13 +106,20 @@ const CASES: [Case; 3] = [
     },
 ];
 
-/// Runs the sweeps; `quick` keeps the two coarsest settings of each series and two frames.
-pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Lk14Row>, Box<dyn std::error::Error>> {
+/// Runs the sweeps of `cases` (indices into case 10, case 11, pinch; empty: all), every shell
+/// bending with `element`; `quick` keeps the two coarsest settings of each series and two frames.
+pub fn speed_error(
+    out: &Path,
+    quick: bool,
+    element: BendingElement,
+    cases: &[usize],
+) -> Result<Vec<Lk14Row>, Box<dyn std::error::Error>> {
     std::fs::create_dir_all(out)?;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
     let mut rows = Vec::new();
-    for case in &CASES {
+    for (_, case) in CASES.iter().enumerate().filter(|(i, _)| cases.is_empty() || cases.contains(i)) {
         let text = smooth_perturbation(&std::fs::read_to_string(dir.join(case.scene))?, case.cell_mm);
+        let text = with_element(&text, element);
         let take = |n: usize| if quick { n.min(2) } else { n };
         let mut series: Vec<Lk14Row> = Vec::new();
         for &(nx, ny) in case.uniform.iter().take(take(case.uniform.len())) {
@@ -145,7 +155,7 @@ pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Lk14Row>, Box<dyn std:
         }
         rows.extend(series);
     }
-    write(out, &rows)?;
+    write(out, &rows, element)?;
     plot(&out.join("speed_error_lk14.svg"), &rows)?;
     Ok(rows)
 }
@@ -173,6 +183,13 @@ fn time_at_error(uniform: &[(f64, f64)], error: f64) -> Option<(f64, bool)> {
         let s = (error / e0).ln() / (e1 / e0).ln();
         (e0 >= error && error >= e1).then(|| ((t0.ln() + s * (t1 / t0).ln()).exp(), false))
     })
+}
+
+/// The scene text with every shell bending with `element`.
+fn with_element(text: &str, element: BendingElement) -> String {
+    let hinge = "bending: Some((model: Tan))";
+    assert!(text.contains(hinge), "the LK14 scenes bend with Tan hinges");
+    text.replace(hinge, &format!("bending: Some((model: Tan, element: {element:?}))"))
 }
 
 /// The scene text with its perturbation made a Perlin field of `cell` (mm).
@@ -208,7 +225,7 @@ fn run(
         built.scene.frames = 2;
     }
     let mut sim = Simulation::new(&built);
-    let (mut vertices, mut iterations, mut seconds, mut energy) = (0.0, 0, 0.0, 0.0);
+    let (mut vertices, mut iterations, mut seconds, mut energy, mut unconverged) = (0.0, 0, 0.0, 0.0, 0);
     for _ in 0..built.scene.frames {
         let clock = std::time::Instant::now();
         let s = sim.step();
@@ -219,6 +236,7 @@ fn run(
         // (the swept layer's own vertices, counted outside the timed step)
         vertices += sim.layer_mesh("skin", case.layer).0.len() as f64;
         iterations += s.patches[0].newton_iterations;
+        unconverged += u32::from(!s.patches[0].converged);
         energy = s.patches[0].energy;
     }
     let frames = built.scene.frames as f64;
@@ -242,6 +260,7 @@ fn run(
         mean_vertices: vertices / frames,
         ms_per_frame,
         newton_iterations: iterations,
+        unconverged_frames: unconverged,
         wavelength_error,
         energy_error: 0.0,
         shape_error: 0.0,
@@ -254,10 +273,12 @@ fn run(
     Ok(row)
 }
 
-fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
-    let mut md = String::from(
+fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Result<()> {
+    let flag = if element == BendingElement::Hinge { "hinge" } else { "quadratic" };
+    let mut md = format!(
         "# Speed against error, LK14 (VALIDATION.md F, issue 5)\n\n\
-         Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --out report`.\n\
+         Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --bending {flag} --out report`. \
+         Every shell bends with the {element:?} element.\n\
          Uniform meshes of the swept layer against adaptive ones (REMESH.md) started from the coarsest uniform \
          mesh; the first frame is solved on that mesh, then it is remeshed every few frames. Every run of a case \
          has the same imperfection, a Perlin field of half the wavelength in material space, so every mesh \
@@ -266,12 +287,13 @@ fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
          time per frame over the uniform time at the same shape (or |energy|) error, interpolated log-log along \
          the uniform runs' Pareto front, each kept only if more accurate than every cheaper one (`<`: no \
          uniform run but the reference is as accurate, so the ratio is at most this; blank: every uniform run is \
-         more accurate). Wavelength error: the dominant peak (case 10) or the peak nearest lambda_2 (case 11) against the kernel wavelength. Energy \
-         error: the final total energy against the reference's; on remeshed (irregular) meshes it carries the \
-         hinge bending model's mesh dependence (calibrated on equilateral triangles, VALIDATION.md case 5: \
-         measured on case 10, the angle-0.2 adaptive runs hold 11-13 % less bending energy than a uniform \
-         384 x 54 run, at a membrane energy within 5 % of its). Vertices: the swept layer's, mean over the frames. Time: wall per frame on this \
-         machine, one run.\n\n\
+         more accurate). Wavelength error: the dominant peak (case 10) or the peak nearest lambda_2 (case 11) \
+         against the kernel wavelength. Energy error: the final total energy against the reference's. With the \
+         Hinge element it carries the hinge's mesh dependence on remeshed (irregular, anisotropic) meshes: \
+         calibrated on equilateral triangles, it holds 46 % too little energy on a 4:1 mesh bent across its short \
+         edges (VALIDATION.md case 5), and the adaptive case-10 runs 11-13 % too little bending energy; the \
+         Quadratic element is within 1 % on that mesh. Vertices: the swept layer's, mean over the frames. Time: \
+         wall per frame on this machine, one run.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\
          | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
@@ -292,14 +314,17 @@ fn write(out: &Path, rows: &[Lk14Row]) -> std::io::Result<()> {
         } else {
             format!("{:+.2} %", 100.0 * r.wavelength_error)
         };
+        let iterations = match r.unconverged_frames {
+            0 => r.newton_iterations.to_string(),
+            n => format!("{} ({n} frame(s) at the iteration limit)", r.newton_iterations),
+        };
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.0} | {} | {:.3} | {ratio} | {wavelength} | {:+.3} % | {ratio_energy} |",
+            "| {} | {} | {:.0} | {:.0} | {iterations} | {:.3} | {ratio} | {wavelength} | {:+.3} % | {ratio_energy} |",
             r.series,
             r.setting,
             r.mean_vertices,
             r.ms_per_frame,
-            r.newton_iterations,
             r.shape_error,
             100.0 * r.energy_error
         );

@@ -85,6 +85,12 @@ enum Command {
         /// Which sweeps.
         #[arg(long, value_enum, default_value = "all")]
         only: Sweeps,
+        /// LK14 sweeps: the bending element of every shell (the scenes' own is the hinge).
+        #[arg(long, value_enum, default_value = "quadratic")]
+        bending: BendingArg,
+        /// LK14 sweeps: only these cases (default: all three).
+        #[arg(long, value_enum, value_delimiter = ',')]
+        cases: Vec<Lk14Case>,
     },
 }
 
@@ -93,6 +99,21 @@ enum Sweeps {
     All,
     H15,
     Lk14,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum BendingArg {
+    Hinge,
+    Quadratic,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Lk14Case {
+    #[value(name = "10")]
+    Case10,
+    #[value(name = "11")]
+    Case11,
+    Pinch,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -152,7 +173,14 @@ fn main() -> ExitCode {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
-        Command::Report { out, quick, only } => report(&out, quick, only),
+        Command::Report { out, quick, only, bending, cases } => {
+            let element = match bending {
+                BendingArg::Hinge => skinsim::physics::BendingElement::Hinge,
+                BendingArg::Quadratic => skinsim::physics::BendingElement::Quadratic,
+            };
+            let cases: Vec<usize> = cases.iter().map(|c| *c as usize).collect();
+            report(&out, quick, only, element, &cases)
+        }
         Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
         Command::Bake { scene, frames, weights, size, out, layer, blend } => {
             bake(&scene, BakeRequest { frames, weights, size, layer, blends: blend }, out)
@@ -390,14 +418,20 @@ fn timing(scenes: &[PathBuf], frames: Option<u32>, out: &Path) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-fn report(out: &Path, quick: bool, only: Sweeps) -> ExitCode {
+fn report(
+    out: &Path,
+    quick: bool,
+    only: Sweeps,
+    element: skinsim::physics::BendingElement,
+    cases: &[usize],
+) -> ExitCode {
     let result = (|| -> Result<(), Box<dyn std::error::Error>> {
         if only != Sweeps::Lk14 {
             let rows = skinsim_tools::report::speed_error(out, quick)?;
             println!("{} runs; wrote {}", rows.len(), out.join("speed_error.md").display());
         }
         if only != Sweeps::H15 {
-            let rows = skinsim_tools::lk14_report::speed_error(out, quick)?;
+            let rows = skinsim_tools::lk14_report::speed_error(out, quick, element, cases)?;
             println!("{} runs; wrote {}", rows.len(), out.join("speed_error_lk14.md").display());
         }
         Ok(())
