@@ -9,6 +9,7 @@ use std::collections::HashSet;
 use bevy_ecs::prelude::*;
 use common::*;
 use skinsim::model::*;
+use skinsim::solve::SolverBody;
 use skinsim_systems::Simulation;
 
 const SCENE: &str = "lk14/remesh_one_layer_quick.ron";
@@ -253,6 +254,33 @@ fn run_checked(scene: &skinsim::scene::BuiltScene) -> Simulation {
 }
 
 /// Hard case (issue 5 point 8): remeshing while the base is compressed to half its length.
+/// The quadratic bending element on a remeshed layer: its per-vertex elements are rebuilt from
+/// the new mesh (one per interior vertex, no hinges), and every frame converges with the
+/// constraints held and the layer consistent.
+#[test]
+fn a_remeshed_layer_bends_with_quadratic_elements() {
+    let quadratic = "bending: Some((model: Tan, element: Quadratic)),";
+    let scene = variant(&scratch_dir("remesh"), &[("bending: Some((model: Tan)),", quadratic)]);
+    let mut sim = run_checked(&scene);
+    let (_, _, faces) = sim.layer_mesh("skin", "dermis");
+    let mut interior: HashSet<u32> = faces.iter().flatten().copied().collect();
+    for e in skinsim::mesh::edges(&faces).iter().filter(|e| !e.is_interior()) {
+        interior.remove(&e.v[0]);
+        interior.remove(&e.v[1]);
+    }
+    let mut q = sim.world.query::<&SolverBody>();
+    let body = q.single(&sim.world).unwrap();
+    println!(
+        "quadratic elements after remeshing: {} ({} interior vertices)",
+        body.elements.quadratic.len(),
+        interior.len()
+    );
+    assert!(body.elements.hinges.is_empty());
+    assert_eq!(body.elements.quadratic.len(), interior.len());
+    let dermis = layer(&mut sim, "dermis");
+    assert!(sim.world.get::<RemeshReport>(dermis).unwrap().frame > 0);
+}
+
 #[test]
 fn remeshing_through_compression_to_half() {
     let scene = variant(&scratch_dir("remesh"), &[("strain: 0.1)", "strain: 0.5)")]);

@@ -85,8 +85,8 @@ enum Command {
         /// Which sweeps.
         #[arg(long, value_enum, default_value = "all")]
         only: Sweeps,
-        /// LK14 sweeps: the bending element of every shell (the scenes' own is the hinge).
-        #[arg(long, value_enum, default_value = "quadratic")]
+        /// LK14 sweeps: the bending element of every shell (hinge: the scenes' own).
+        #[arg(long, value_enum, default_value = "hinge")]
         bending: BendingArg,
         /// LK14 sweeps: only these cases (default: all three).
         #[arg(long, value_enum, value_delimiter = ',')]

@@ -180,6 +180,23 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     assert_eq!(std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap().lines().count(), 13);
 }
 
+/// The LK14 sweep with the quadratic bending element, case 10 only: the table names the element
+/// and holds that case's rows; an unknown case is a usage error (status 2).
+#[test]
+fn report_sweeps_one_lk14_case_with_the_quadratic_element() {
+    let dir = scratch("report_quadratic");
+    let args = ["report", "--quick", "--only", "lk14", "--bending", "quadratic", "--cases", "10", "--out"];
+    let out = skinsim().args(args).arg(&dir).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let lk14 = std::fs::read_to_string(dir.join("speed_error_lk14.md")).unwrap();
+    assert!(lk14.contains("Quadratic element") && lk14.contains("--bending quadratic"), "{lk14}");
+    let rows: Vec<&str> = lk14.lines().filter(|l| l.starts_with("| case") || l.starts_with("| fig")).collect();
+    assert_eq!(rows.len(), 4, "{lk14}");
+    assert!(rows.iter().all(|r| r.starts_with("| case 10")), "{lk14}");
+    let bad = skinsim().args(["report", "--only", "lk14", "--cases", "12"]).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+}
+
 #[test]
 fn bake_writes_normal_maps_blends_and_a_recording() {
     let dir = scratch("bake");
