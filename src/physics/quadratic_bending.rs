@@ -12,9 +12,10 @@
 //!
 //! Why it exists next to the hinge: the hinge's energy depends on the mesh (PHYSICS.md 1.2),
 //! and on the anisotropic meshes the remesher makes it holds 11-13 % less bending energy than
-//! a fine uniform mesh. Bent into a cylinder, this element is within 1.5 % of D / (2 R^2) on
-//! equilateral, right-triangle, jittered and curvature-aligned anisotropic meshes (unit tests
-//! below; VALIDATION.md case 5 in tests/validation_shells.rs).
+//! a fine uniform mesh. Bent into a cylinder, this element is within 1 % of D / (2 R^2) on
+//! equilateral, right-triangle and jittered meshes and on a 4:1 stretched lattice, where the
+//! hinge is off by -46 % (VALIDATION.md case 5 in tests/validation_shells.rs); non-Delaunay
+//! meshes cost it accuracy (+4.3 % on a jittered 4:1 one, unit tests below).
 //!
 //! Limits: a flat rest state (no rest curvature), small in-plane strain where it bends; boundary
 //! vertices carry no element (their one-sided Laplacian does not vanish on flat states). It has
@@ -261,19 +262,22 @@ mod tests {
         e / a / (0.5 / (r * r)) - 1.0
     }
 
+    /// Meshes with fixed (alternating-diagonal) connectivity: jitter makes them non-Delaunay,
+    /// which the cotangent weights feel. Measured: regular -0.04 %; jittered by 0.15 of the
+    /// spacing +0.71 .. +1.01 %; 1:4 anisotropic jittered by 0.1 +4.3 % (its stretched lattice
+    /// alone: -0.003 %, tests/validation_shells.rs).
     #[test]
     fn cylinder_energy_is_kirchhoff_on_many_meshes() {
         for (name, jitter, stretch, tol) in [
             ("regular", 0.0, 1.0, 0.005),
-            ("jittered", 0.15, 1.0, 0.01),
-            ("anisotropic 1:4, short edges across the axis", 0.1, 0.25, 0.03),
+            ("jittered", 0.15, 1.0, 0.015),
+            ("anisotropic 1:4, short edges across the axis", 0.1, 0.25, 0.05),
         ] {
             let (p, f) = grid(40, jitter, stretch);
             let angles: &[f64] = if stretch < 1.0 { &[0.0] } else { &[0.0, 0.4, std::f64::consts::FRAC_PI_2] };
             for &angle in angles {
                 let err = cylinder_error(&p, &f, 20.0 * stretch, angle);
-                eprintln!("{name} angle {angle}: {err:+.4}");
-                assert!(tol > 0.0 || err.abs() < tol, "{name}, angle {angle}: {err:+.4}");
+                assert!(err.abs() < tol, "{name}, angle {angle}: {err:+.4}");
             }
         }
     }
