@@ -22,7 +22,7 @@
 //! no Gaussian-curvature term, so out-of-plane fields that are harmonic in material space (saddles,
 //! edge waves) bend for free and only the membrane holds them: in the compressed LK14 sweeps
 //! (`skinsim report --only lk14 --bending quadratic`) Newton reached its iteration limit in one or
-//! two frames of most runs, where the hinge reached it in none, at 1.8-2.5x the hinge's time per
+//! two frames of most runs, where the hinge reached it in none, at 1.5-6x the hinge's time per
 //! frame (a two-ring stencil fills the factor more). Hence opt-in.
 
 use glam::DVec3;
