@@ -165,8 +165,8 @@ fn rebuild(
                 }
             }
         }
-        if let (Some(le), Some(lf), Some(b)) = (ledges, lfaces, bending) {
-            if b.element == BendingElement::Quadratic {
+        if let (Some(le), Some(b)) = (ledges, bending) {
+            if let (BendingElement::Quadratic, Some(lf)) = (b.element, lfaces) {
                 el.quadratic.extend(quadratic_bending(le, lf, &idx, faces, hinges, rest));
             } else {
                 for &e in le.entities() {

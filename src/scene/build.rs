@@ -1161,12 +1161,13 @@ fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
     ties
 }
 
-/// Pairs each vertex on the max side along `axis` with the min-side vertex at the same other
-/// coordinates.
+/// Whether a layer bends with the quadratic element (flat rest only).
 fn quadratic(layer: &BuiltLayer) -> bool {
     layer.bending.is_some_and(|b| b.element == BendingElement::Quadratic)
 }
 
+/// Pairs each vertex on the max side along `axis` with the min-side vertex at the same other
+/// coordinates.
 fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
     let (lo, hi) = bbox(rest);
     let tol = 1e-9 * (hi - lo).length().max(1e-300);
