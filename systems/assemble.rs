@@ -7,8 +7,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
-use skinsim::physics::quadratic_bending::rigidity_of_hinge;
-use skinsim::physics::{BendingElement, Lame, QuadraticBending};
+use skinsim::physics::{BendingElement, QuadraticBending};
 use skinsim::solve::{Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
 
 pub(crate) type LayerItems<'a> = (
@@ -159,30 +158,33 @@ fn rebuild(
                             v: fv.0.map(|e| idx(&e)),
                             rest: rest.0,
                             model: m.model,
-                            lame: scaled(m.lame, scale),
+                            lame: m.lame.scaled(scale.map_or(1.0, |s| s.0)),
                         });
                     }
                 }
             }
         }
         if let (Some(le), Some(b)) = (ledges, bending) {
+            let layer_hinges = le.entities().iter().filter_map(|&e| hinges.get(e).ok()).map(|(ev, h)| {
+                let v = [idx(&ev.0[0]), idx(&ev.0[1]), idx(&h.opposite[0]), idx(&h.opposite[1])];
+                HingeElem { v, rest: h.rest, model: b.model, image: h.image.map(|[a, b]| (idx(&a), idx(&b))) }
+            });
             if let (BendingElement::Quadratic, Some(lf)) = (b.element, lfaces) {
-                el.quadratic.extend(quadratic_bending(le, lf, &idx, faces, hinges, rest));
+                // Built from the hinges' stiffness (property maps and scale included).
+                let tris: Vec<[u32; 3]> =
+                    lf.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|f| f.0 .0.map(|e| idx(&e))).collect();
+                let stiffness: Vec<([u32; 4], f64)> = layer_hinges.map(|h| (h.v, h.rest.weight)).collect();
+                let rest_at = |i: u32| rest.get(body.vertices[i as usize]).expect("vertex").0;
+                el.quadratic.extend(QuadraticBending::from_hinges(&tris, rest_at, &stiffness));
             } else {
-                for &e in le.entities() {
-                    if let Ok((ev, h)) = hinges.get(e) {
-                        let v = [idx(&ev.0[0]), idx(&ev.0[1]), idx(&h.opposite[0]), idx(&h.opposite[1])];
-                        let image = h.image.map(|[a, b]| (idx(&a), idx(&b)));
-                        el.hinges.push(HingeElem { v, rest: h.rest, model: b.model, image });
-                    }
-                }
+                el.hinges.extend(layer_hinges);
             }
         }
         if let (Some(lt), Some(m)) = (ltets, material) {
             tet_count += lt.entities().len();
             for &t in lt.entities() {
                 if let Ok((tv, rest, scale)) = tets.get(t) {
-                    let lame = scaled(m.lame, scale);
+                    let lame = m.lame.scaled(scale.map_or(1.0, |s| s.0));
                     el.tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame });
                 }
             }
@@ -201,38 +203,4 @@ fn rebuild(
     body.face_count = face_count;
     body.tet_count = tet_count;
     body.invalidate_pattern();
-}
-
-/// A layer's quadratic bending elements, in packed indices, from its rest positions and its
-/// hinges' stiffness (property maps and scale included).
-fn quadratic_bending(
-    le: &LayerEdges,
-    lf: &LayerFaces,
-    idx: &impl Fn(&Entity) -> u32,
-    faces: &Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
-    hinges: &Query<(&EdgeVerts, &Hinge)>,
-    rest: &Query<&RestPos>,
-) -> QuadraticBending {
-    let at = |e: &Entity| rest.get(*e).expect("vertex").0;
-    let tris: Vec<[u32; 3]> =
-        lf.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|(fv, ..)| fv.0.map(|e| idx(&e))).collect();
-    let mut rest_of: HashMap<u32, DVec3> = HashMap::new();
-    for (fv, ..) in lf.entities().iter().filter_map(|&f| faces.get(f).ok()) {
-        fv.0.iter().for_each(|e| _ = rest_of.insert(idx(e), at(e)));
-    }
-    let rigidity: Vec<([u32; 2], f64)> = le
-        .entities()
-        .iter()
-        .filter_map(|&e| hinges.get(e).ok())
-        .map(|(ev, h)| {
-            let x = [ev.0[0], ev.0[1], h.opposite[0], h.opposite[1]].map(|e| at(&e));
-            ([idx(&ev.0[0]), idx(&ev.0[1])], rigidity_of_hinge(h.rest.weight, x))
-        })
-        .collect();
-    QuadraticBending::build(&tris, |i| rest_of.get(&i).copied().unwrap_or(DVec3::ZERO), &rigidity)
-}
-
-/// The layer's Lame parameters times an element's modulus factor (both scale with E).
-fn scaled(lame: Lame, scale: Option<&ModulusScale>) -> Lame {
-    scale.map_or(lame, |s| Lame { mu: lame.mu * s.0, lambda: lame.lambda * s.0 })
 }

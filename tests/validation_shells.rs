@@ -33,18 +33,7 @@ fn cylinder_error(mut scene: skinsim::scene::BuiltScene, axis: usize, jitter: f6
     let LayerMesh::Surface(m) = &mut scene.patches[0].layers[0].mesh else { unreachable!() };
     let lattice = m.rest.clone();
     let (lo, hi) = lattice.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
-    if jitter > 0.0 {
-        let h = 1e-3 * jitter;
-        for (i, p) in m.rest.iter_mut().enumerate() {
-            if p.x > lo.x + 1e-9 && p.x < hi.x - 1e-9 && p.y > lo.y + 1e-9 && p.y < hi.y - 1e-9 {
-                let s = (i as f64 * 12.9898).sin() * 43758.5453;
-                let t = (i as f64 * 78.233).sin() * 12345.678;
-                p.x += h * (2.0 * s.fract().abs() - 1.0);
-                p.y += h * (2.0 * t.fract().abs() - 1.0);
-                m.uv[i] = p.truncate();
-            }
-        }
-    }
+    jitter_interior(m, jitter);
     let rest_mesh = m.rest.clone();
     let d = plate_d(&scene);
     let BuiltDriver::Bend { keyframes, .. } = &scene.patches[0].drivers[1] else { unreachable!() };
@@ -79,6 +68,24 @@ fn cylinder_error(mut scene: skinsim::scene::BuiltScene, axis: usize, jitter: f6
     rel(measured, d / (2.0 * r * r))
 }
 
+/// Moves the interior vertices of a lattice in mm by up to `jitter` of a millimetre (seeded,
+/// the boundary kept), material coordinates along.
+fn jitter_interior(m: &mut skinsim::mesh::SurfaceMesh, jitter: f64) {
+    let (lo, hi) = m.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+    if jitter <= 0.0 {
+        return;
+    }
+    for (i, p) in m.rest.iter_mut().enumerate() {
+        if p.x > lo.x + 1e-9 && p.x < hi.x - 1e-9 && p.y > lo.y + 1e-9 && p.y < hi.y - 1e-9 {
+            let s = (i as f64 * 12.9898).sin() * 43758.5453;
+            let t = (i as f64 * 78.233).sin() * 12345.678;
+            p.x += 1e-3 * jitter * (2.0 * s.fract().abs() - 1.0);
+            p.y += 1e-3 * jitter * (2.0 * t.fract().abs() - 1.0);
+            m.uv[i] = p.truncate();
+        }
+    }
+}
+
 /// The same cylinder, either element, on a mesh jittered and/or stretched along x (`stretch`
 /// < 1: short edges along x): energy per unit area away from the boundary. Quadratic: sum of
 /// W_v over sum of M_v; hinge: sum of W over sum of a third of each hinge's two faces.
@@ -97,13 +104,8 @@ fn cylinder_error_by_area(
     }
     let LayerMesh::Surface(m) = &mut scene.patches[0].layers[0].mesh else { unreachable!() };
     let (lo, hi) = m.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+    jitter_interior(m, jitter);
     for (i, p) in m.rest.iter_mut().enumerate() {
-        if jitter > 0.0 && p.x > lo.x + 1e-9 && p.x < hi.x - 1e-9 && p.y > lo.y + 1e-9 && p.y < hi.y - 1e-9 {
-            let s = (i as f64 * 12.9898).sin() * 43758.5453;
-            let t = (i as f64 * 78.233).sin() * 12345.678;
-            p.x += 1e-3 * jitter * (2.0 * s.fract().abs() - 1.0);
-            p.y += 1e-3 * jitter * (2.0 * t.fract().abs() - 1.0);
-        }
         p.x = lo.x + stretch * (p.x - lo.x);
         m.uv[i] = p.truncate();
     }

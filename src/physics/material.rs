@@ -11,6 +11,11 @@ pub struct Lame {
 }
 
 impl Lame {
+    /// Both parameters times a factor (they scale with Young's modulus).
+    pub fn scaled(self, factor: f64) -> Self {
+        Lame { mu: self.mu * factor, lambda: self.lambda * factor }
+    }
+
     /// Plane-stress parameters of a thin membrane (PHYSICS.md 1.1): the 3D lambda would lock.
     pub fn plane_stress(young: f64, poisson: f64) -> Self {
         Lame { mu: young / (2.0 * (1.0 + poisson)), lambda: young * poisson / (1.0 - poisson * poisson) }

@@ -119,6 +119,14 @@ impl QuadraticBending {
         out
     }
 
+    /// Elements from a layer's hinges, (x0, x1 the edge, x2, x3 the opposite vertices; rest
+    /// weight k_b 3 |e|^2 / A): each edge's D read back from its hinge (`rigidity_of_hinge`).
+    pub fn from_hinges(faces: &[[u32; 3]], rest: impl Fn(u32) -> DVec3, hinges: &[([u32; 4], f64)]) -> Self {
+        let rigidity: Vec<([u32; 2], f64)> =
+            hinges.iter().map(|(v, weight)| ([v[0], v[1]], rigidity_of_hinge(*weight, v.map(&rest)))).collect();
+        Self::build(faces, rest, &rigidity)
+    }
+
     pub fn len(&self) -> usize {
         self.k.len()
     }

@@ -190,17 +190,22 @@ impl Pattern {
         for p in 0..n {
             let dp = self.dof[3 * verts[p / 3] as usize + p % 3];
             for q in 0..=p {
-                let dq = self.dof[3 * verts[q / 3] as usize + q % 3];
-                out.push(if dp == NONE || dq == NONE {
-                    NONE
-                } else if p != q && dp == dq {
-                    self.position(dp, dq) | DOUBLE
-                } else {
-                    self.position(dp, dq)
-                });
+                out.push(self.slot(dp, self.dof[3 * verts[q / 3] as usize + q % 3], p != q));
             }
         }
         out
+    }
+
+    /// Where the local entry of DOFs da, db lands: NONE if either is fixed, flagged DOUBLE when
+    /// two distinct local DOFs share one global DOF.
+    fn slot(&self, da: u32, db: u32, distinct: bool) -> u32 {
+        if da == NONE || db == NONE {
+            NONE
+        } else if distinct && da == db {
+            self.position(da, db) | DOUBLE
+        } else {
+            self.position(da, db)
+        }
     }
 
     /// Scatter map of a stencil whose Hessian is (a scalar matrix) x I3: positions of the
@@ -210,14 +215,7 @@ impl Pattern {
         for (a, &va) in verts.iter().enumerate() {
             for &vb in &verts[..=a] {
                 for k in 0..3 {
-                    let (da, db) = (self.dof[3 * va as usize + k], self.dof[3 * vb as usize + k]);
-                    out.push(if da == NONE || db == NONE {
-                        NONE
-                    } else if va != vb && da == db {
-                        self.position(da, db) | DOUBLE
-                    } else {
-                        self.position(da, db)
-                    });
+                    out.push(self.slot(self.dof[3 * va as usize + k], self.dof[3 * vb as usize + k], va != vb));
                 }
             }
         }
