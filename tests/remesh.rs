@@ -277,6 +277,9 @@ fn a_remeshed_layer_bends_with_quadratic_elements() {
     );
     assert!(body.elements.hinges.is_empty());
     assert_eq!(body.elements.quadratic.len(), interior.len());
+    // and its Gaussian term on every face with an interior corner
+    let touching = faces.iter().filter(|f| f.iter().any(|v| interior.contains(v))).count();
+    assert_eq!(body.elements.gaussian.len(), touching);
     let dermis = layer(&mut sim, "dermis");
     assert!(sim.world.get::<RemeshReport>(dermis).unwrap().frame > 0);
 }

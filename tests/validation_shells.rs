@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use skinsim::model::RestPos;
-use skinsim::physics::{hinge, BendingElement};
+use skinsim::physics::{gaussian_bending, hinge, BendingElement};
 use skinsim::scene::build::{BuiltDriver, LayerMesh};
 use skinsim::solve::eval::vertex_gradient;
 use skinsim::solve::SolverBody;
@@ -125,6 +125,12 @@ fn cylinder_error_by_area(
     for i in (0..quad.len()).filter(|&i| inside(rest[quad.stencil(i).0[0] as usize])) {
         energy += quad.element_energy(i, &body.x);
         area += quad.area[i];
+    }
+    // The quadratic element's Gaussian term: the corners at vertices inside (K = 0 on a
+    // cylinder, so it adds only the discretization's defects).
+    for g in &body.elements.gaussian {
+        let corners = gaussian_bending::corner_energies(g, &g.v.map(|v| body.x[v as usize]));
+        energy += (0..3).filter(|&k| inside(rest[g.v[k] as usize])).map(|k| corners[k]).sum::<f64>();
     }
     for h in body.elements.hinges.iter().filter(|h| inside(0.5 * (rest[h.v[0] as usize] + rest[h.v[1] as usize]))) {
         let p = h.v.map(|v| rest[v as usize]);

@@ -7,6 +7,7 @@
 //! rule from F to vertex positions is linear (F = Ds B), so it is applied in closed form.
 
 pub mod dual;
+pub mod gaussian_bending;
 pub mod hinge;
 pub mod material;
 pub mod membrane;
@@ -17,6 +18,7 @@ pub mod quadratic_bending;
 pub mod spring;
 pub mod tet;
 
+pub use gaussian_bending::GaussianElem;
 pub use hinge::{HingeModel, HingeRest};
 pub use material::{ConstitutiveModel, Lame};
 pub use psd::Projection;

@@ -5,28 +5,31 @@
 //!
 //! For a vertex v with mixed Voronoi area M_v, (L x)_v = sum_j w_vj (x_j - x_v),
 //! w_vj = (cot a_vj + cot b_vj) / 2 from the rest (material) triangles, approximates the mean
-//! curvature normal times M_v, so W_v = D_v / (2 M_v) |(L x)_v|^2 approximates the Kirchhoff
-//! energy (D / 2) H^2 M_v for deformations that keep lengths (the Gaussian term integrates to
-//! a boundary term then). The energy is quadratic in x: a constant, positive semidefinite
-//! Hessian, no projection.
+//! curvature normal times M_v, so W_v = D_v / (2 M_v) |(L x)_v|^2 approximates the mean
+//! curvature part (D / 2) (2H)^2 M_v of Kirchhoff's plate energy. The energy is quadratic in
+//! x: a constant, positive semidefinite Hessian, no projection. Its Gaussian-curvature part,
+//! -(1 - nu) D K, is the triangle element of `gaussian_bending`; `plate` builds both. Without it
+//! a field harmonic in material space (a saddle, an edge wave) would bend for free.
 //!
 //! Why it exists next to the hinge: the hinge's energy depends on the mesh (PHYSICS.md 1.2),
 //! and on the anisotropic meshes the remesher makes it holds 11-13 % less bending energy than
 //! a fine uniform mesh. Bent into a cylinder, this element is within 1 % of D / (2 R^2) on
 //! equilateral, right-triangle and jittered meshes and on a 4:1 stretched lattice, where the
 //! hinge is off by -46 % (VALIDATION.md case 5 in tests/validation_shells.rs); non-Delaunay
-//! meshes cost it accuracy (+4.3 % on a jittered 4:1 one, unit tests below).
+//! meshes cost it accuracy (+4.3 % on a jittered 4:1 one, unit tests below). With its Gaussian
+//! term it is within 2 % of D (1 + nu) / R^2 on a dome and D (1 - nu) / R^2 on a saddle.
 //!
 //! Limits: a flat rest state (no rest curvature), small in-plane strain where it bends; boundary
-//! vertices carry no element (their one-sided Laplacian does not vanish on flat states). It has
-//! no Gaussian-curvature term, so out-of-plane fields that are harmonic in material space (saddles,
-//! edge waves) bend for free and only the membrane holds them: in the compressed LK14 sweeps
-//! (`skinsim report --only lk14 --bending quadratic`) Newton reached its iteration limit in one or
-//! two frames of most runs, where the hinge reached it in none, at 1.5-6x the hinge's time per
-//! frame (a two-ring stencil fills the factor more). Hence opt-in.
+//! vertices carry no element (their one-sided Laplacian does not vanish on flat states). In the
+//! compressed LK14 sweeps (`skinsim report --only lk14 --bending quadratic`) Newton reached its
+//! iteration limit in one frame of most adaptive runs, with or without the Gaussian term, where
+//! the hinge reached it in none, at 1.5-6x the hinge's time per frame (a two-ring stencil fills
+//! the factor more). Hence opt-in.
 
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
+
+use super::gaussian_bending::{self, GaussianElem};
 
 /// Which bending element a shell layer uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -125,6 +128,19 @@ impl QuadraticBending {
         let rigidity: Vec<([u32; 2], f64)> =
             hinges.iter().map(|(v, weight)| ([v[0], v[1]], rigidity_of_hinge(*weight, v.map(&rest)))).collect();
         Self::build(faces, rest, &rigidity)
+    }
+
+    /// A layer's Kirchhoff plate: its elements from the hinges (`from_hinges`) and their
+    /// Gaussian-curvature term for Poisson's ratio `poisson` (`gaussian_bending`).
+    pub fn plate(
+        faces: &[[u32; 3]],
+        rest: impl Fn(u32) -> DVec3,
+        hinges: &[([u32; 4], f64)],
+        poisson: f64,
+    ) -> (Self, Vec<GaussianElem>) {
+        let q = Self::from_hinges(faces, &rest, hinges);
+        let g = gaussian_bending::elements(&q, faces, &rest, poisson);
+        (q, g)
     }
 
     pub fn len(&self) -> usize {
@@ -286,6 +302,41 @@ mod tests {
             for &angle in angles {
                 let err = cylinder_error(&p, &f, 20.0 * stretch, angle);
                 assert!(err.abs() < tol, "{name}, angle {angle}: {err:+.4}");
+            }
+        }
+    }
+
+    /// With its Gaussian term (`gaussian_bending`), the element is Kirchhoff's plate:
+    /// D / 2 [(2H)^2 - 2 (1 - nu) K] per area, so D (1 + nu) / R^2 on a dome of curvature 1 / R
+    /// both ways, D (1 - nu) / R^2 on a saddle (1 / R, -1 / R), where the quadratic part alone
+    /// holds nothing. Shallow shapes (slopes below 0.02) over the flat mesh, away from the
+    /// boundary.
+    #[test]
+    fn with_its_gaussian_term_it_is_kirchhoffs_plate() {
+        let (nu, r) = (0.3, 1000.0);
+        for (name, jitter) in [("regular", 0.0), ("jittered", 0.15)] {
+            let (p, f) = grid(40, jitter, 1.0);
+            let q = QuadraticBending::build(&f, |i| p[i as usize], &unit_rigidity(&f));
+            let g = gaussian_bending::elements(&q, &f, |i| p[i as usize], nu);
+            let inside = |v: DVec3| v.x > 6.0 && v.x < 34.0 && v.y > 6.0 && v.y < 34.0;
+            for (shape, sign, expected) in [("dome", 1.0, (1.0 + nu) / (r * r)), ("saddle", -1.0, (1.0 - nu) / (r * r))]
+            {
+                let x: Vec<DVec3> = p
+                    .iter()
+                    .map(|v| DVec3::new(v.x, v.y, ((v.x - 20.0).powi(2) + sign * (v.y - 20.0).powi(2)) / (2.0 * r)))
+                    .collect();
+                let (mut e, mut a) = (0.0, 0.0);
+                for i in (0..q.len()).filter(|&i| inside(p[q.stencil(i).0[0] as usize])) {
+                    e += q.element_energy(i, &x);
+                    a += q.area[i];
+                }
+                for t in &g {
+                    let corners = gaussian_bending::corner_energies(t, &t.v.map(|v| x[v as usize]));
+                    e += (0..3).filter(|&k| inside(p[t.v[k] as usize])).map(|k| corners[k]).sum::<f64>();
+                }
+                let err = e / a / expected - 1.0;
+                eprintln!("plate: {name} mesh, {shape}: {:+.3} %", 100.0 * err);
+                assert!(err.abs() < 0.02, "{name}, {shape}: {err:+.4}");
             }
         }
     }

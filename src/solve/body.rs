@@ -8,7 +8,7 @@ use crate::model::PatchReport;
 use crate::physics::hinge::HingeRest;
 use crate::physics::membrane::MembraneRest;
 use crate::physics::tet::TetRest;
-use crate::physics::{ConstitutiveModel, HingeModel, Lame, QuadraticBending};
+use crate::physics::{ConstitutiveModel, GaussianElem, HingeModel, Lame, QuadraticBending};
 
 use super::constraints::Constraints;
 use super::kkt::KktSystem;
@@ -75,6 +75,8 @@ pub struct Elements {
     pub hinges: Vec<HingeElem>,
     /// Quadratic bending, one element per interior vertex (layers that choose it).
     pub quadratic: QuadraticBending,
+    /// Its Gaussian-curvature term, per triangle (`gaussian_bending`).
+    pub gaussian: Vec<GaussianElem>,
     pub tets: Vec<TetElem>,
     pub springs: Vec<SpringElem>,
     /// Anchors at skin vertices and at skin face barycentres (KCK18 section 3).

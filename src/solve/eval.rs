@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use super::body::{AnchorElem, Elements};
 use super::pattern::{pairs, Pattern, DOUBLE, NONE};
 use crate::physics::psd::Filter;
-use crate::physics::{hinge, membrane, spring, tet, QuadraticBending};
+use crate::physics::{gaussian_bending, hinge, membrane, spring, tet, QuadraticBending};
 
 /// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
 const CHUNK: usize = 1024;
@@ -32,7 +32,8 @@ pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
     [
         sum_chunks(&elements.membranes, |e| membrane::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
         sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &e.positions(x)))
-            + elements.quadratic.energy(x),
+            + elements.quadratic.energy(x)
+            + sum_chunks(&elements.gaussian, |e| gaussian_bending::energy(e, &gather(x, &e.v))),
         sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
         sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize]))
             + sum_chunks(&elements.vertex_anchors, |e| anchor_energy(e, x))
@@ -80,6 +81,12 @@ pub fn assemble(
         |e| hinge::eval(e.model, &e.rest, &e.positions(x), filter),
     );
     out.parts[1] += acc.quadratic(&el.quadratic, &pattern.quadratic, x);
+    out.parts[1] += acc.class::<_, 3, 9>(
+        &el.gaussian,
+        &pattern.gaussian,
+        |e| e.v,
+        |e| gaussian_bending::eval(e, &gather(x, &e.v), filter),
+    );
     out.parts[2] = acc.class::<_, 4, 12>(
         &el.tets,
         &pattern.tets,
@@ -265,6 +272,9 @@ pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
         let gl: Vec<f64> = ws.iter().flat_map(|&w| (w * r).to_array()).collect();
         add(vs, &gl);
     }
+    for e in &el.gaussian {
+        add(&e.v, gaussian_bending::eval(e, &gather(x, &e.v), Filter::Exact).1.as_slice());
+    }
     for e in &el.tets {
         add(&e.v, tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
     }
@@ -286,16 +296,18 @@ mod tests {
     use super::*;
     use crate::mesh::{edges, grid, GridPattern};
 
-    /// The assembled quadratic bending gradient and Hessian against central differences of the
-    /// energy, on a bent jittered sheet with a held boundary (NONE entries in the maps).
+    /// The assembled quadratic bending gradient and Hessian, with its Gaussian term, against
+    /// central differences of the energy, on a bent sheet with a held boundary (NONE entries
+    /// in the maps).
     #[test]
     fn quadratic_bending_assembles_its_derivatives() {
         let m = grid(glam::DVec2::ONE, (5, 5), GridPattern::Equilateral, 0.0);
         let rigidity: Vec<_> = edges(&m.faces).iter().map(|e| (e.v, 2.0)).collect();
-        let el = Elements {
-            quadratic: QuadraticBending::build(&m.faces, |i| m.rest[i as usize], &rigidity),
-            ..Default::default()
-        };
+        let quadratic = QuadraticBending::build(&m.faces, |i| m.rest[i as usize], &rigidity);
+        let gaussian = gaussian_bending::elements(&quadratic, &m.faces, |i| m.rest[i as usize], 0.3);
+        assert!(!gaussian.is_empty());
+        let el = Elements { quadratic, gaussian, ..Default::default() };
+        let bending = |y: &[DVec3]| energy(&el, y)[1];
         let x: Vec<DVec3> = m
             .rest
             .iter()
@@ -307,7 +319,7 @@ mod tests {
         let pattern = Pattern::build(&x, &fixed, &tie, &el);
         let (mut grad, mut values) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
         let a = assemble(&el, &pattern, &x, Filter::Exact, &mut grad, &mut values);
-        assert!((a.parts[1] - el.quadratic.energy(&x)).abs() < 1e-15);
+        assert!((a.parts[1] - bending(&x)).abs() < 1e-15);
         let h = 1e-6;
         for v in 0..x.len() {
             for k in 0..3 {
@@ -320,13 +332,15 @@ mod tests {
                     y[v][k] += s;
                     y
                 };
-                let fd = (el.quadratic.energy(&shifted(h)) - el.quadratic.energy(&shifted(-h))) / (2.0 * h);
+                let fd = (bending(&shifted(h)) - bending(&shifted(-h))) / (2.0 * h);
                 assert!((fd - grad[d as usize]).abs() < 1e-6, "gradient at {v}.{k}: {fd} vs {}", grad[d as usize]);
-                // Hessian column d against the difference of gradients (exact for a quadratic).
+                // Hessian column d against the central difference of gradients.
                 let (mut gp, mut vp) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+                let (mut gm, mut vm) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
                 assemble(&el, &pattern, &shifted(h), Filter::Exact, &mut gp, &mut vp);
+                assemble(&el, &pattern, &shifted(-h), Filter::Exact, &mut gm, &mut vm);
                 for r in 0..pattern.n as u32 {
-                    let column = (gp[r as usize] - grad[r as usize]) / h;
+                    let column = (gp[r as usize] - gm[r as usize]) / (2.0 * h);
                     let stored =
                         if pattern.position_of(r, d).is_some() { values[pattern.position(r, d) as usize] } else { 0.0 };
                     assert!((column - stored).abs() < 1e-5 * (1.0 + stored.abs()), "H[{r}, {d}]: {column} vs {stored}");

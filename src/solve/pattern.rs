@@ -23,6 +23,8 @@ pub struct Pattern {
     pub hinges: Vec<u32>,
     /// Quadratic bending: per element, per stencil pair (a, b <= a), per coordinate.
     pub quadratic: Vec<u32>,
+    /// The quadratic element's Gaussian term, per triangle.
+    pub gaussian: Vec<u32>,
     pub tets: Vec<u32>,
     pub springs: Vec<u32>,
     pub vertex_anchors: Vec<u32>,
@@ -89,6 +91,7 @@ impl Pattern {
         elements.membranes.iter().for_each(|e| link(&e.v));
         elements.hinges.iter().for_each(|e| link(&e.v));
         (0..elements.quadratic.len()).for_each(|i| link(elements.quadratic.stencil(i).0));
+        elements.gaussian.iter().for_each(|e| link(&e.v));
         elements.tets.iter().for_each(|e| link(&e.v));
         elements.springs.iter().for_each(|e| link(&e.v));
         elements.face_anchors.iter().for_each(|e| link(&e.v));
@@ -155,6 +158,7 @@ impl Pattern {
             membranes: Vec::new(),
             hinges: Vec::new(),
             quadratic: Vec::new(),
+            gaussian: Vec::new(),
             tets: Vec::new(),
             springs: Vec::new(),
             vertex_anchors: Vec::new(),
@@ -165,6 +169,7 @@ impl Pattern {
         p.hinges = elements.hinges.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.quadratic =
             (0..elements.quadratic.len()).flat_map(|i| p.stencil_map(elements.quadratic.stencil(i).0)).collect();
+        p.gaussian = elements.gaussian.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.tets = elements.tets.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.springs = elements.springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.vertex_anchors = elements.vertex_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();

@@ -16,7 +16,7 @@ use nalgebra::{SMatrix, SVector};
 use super::body::Elements;
 use super::constraints::Constraints;
 use crate::physics::psd::Filter;
-use crate::physics::{hinge, membrane};
+use crate::physics::{gaussian_bending, hinge, membrane};
 
 /// What a settle did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -42,6 +42,7 @@ enum Slot {
     Membrane(u32, usize),
     Hinge(u32, usize),
     Quadratic(u32, usize),
+    Gaussian(u32, usize),
 }
 
 /// Settles the vertices `which` (packed indices; vertices with a prescribed coordinate or a
@@ -77,6 +78,11 @@ pub fn settle(
     for i in 0..el.quadratic.len() {
         for (k, &v) in el.quadratic.stencil(i).0.iter().enumerate().filter(|(_, v)| local[**v as usize] != u32::MAX) {
             slots[local[v as usize] as usize].push(Slot::Quadratic(i as u32, k));
+        }
+    }
+    for (i, e) in el.gaussian.iter().enumerate() {
+        for (k, &v) in e.v.iter().enumerate().filter(|(_, v)| local[**v as usize] != u32::MAX) {
+            slots[local[v as usize] as usize].push(Slot::Gaussian(i as u32, k));
         }
     }
     let energy_of = |x: &[DVec3]| -> f64 {
@@ -163,6 +169,7 @@ fn key(s: Slot) -> (u8, u32) {
         Slot::Membrane(i, _) => (0, i),
         Slot::Hinge(i, _) => (1, i),
         Slot::Quadratic(i, _) => (2, i),
+        Slot::Gaussian(i, _) => (3, i),
     }
 }
 
@@ -177,6 +184,10 @@ fn slot_energy(el: &Elements, x: &[DVec3], s: Slot) -> f64 {
             hinge::energy(h.model, &h.rest, &h.positions(x))
         }
         Slot::Quadratic(i, _) => el.quadratic.element_energy(i as usize, x),
+        Slot::Gaussian(i, _) => {
+            let e = &el.gaussian[i as usize];
+            gaussian_bending::energy(e, &e.v.map(|v| x[v as usize]))
+        }
     }
 }
 
@@ -200,6 +211,11 @@ fn relax_vertex(el: &Elements, x: &mut [DVec3], v: usize, slots: &[Slot]) -> f64
                 let w = q.stencil(i as usize).1[k];
                 let kw = q.k[i as usize] * w;
                 (kw * q.laplacian(i as usize, x), DMat3::from_diagonal(DVec3::splat(kw * w)))
+            }
+            Slot::Gaussian(i, k) => {
+                let e = &el.gaussian[i as usize];
+                let (_, ge, he) = gaussian_bending::eval(e, &e.v.map(|v| x[v as usize]), Filter::Exact);
+                block(&ge, &he, k)
             }
         };
         g += gv;
@@ -291,6 +307,7 @@ mod tests {
         if element == BendingElement::Quadratic {
             let rigidity: Vec<_> = edges(&m.faces).iter().map(|e| (e.v, 6e-7)).collect();
             el.quadratic = QuadraticBending::build(&m.faces, |i| m.rest[i as usize], &rigidity);
+            el.gaussian = gaussian_bending::elements(&el.quadratic, &m.faces, |i| m.rest[i as usize], 0.45);
             return (el, m.rest.clone());
         }
         for e in edges(&m.faces).iter().filter(|e| e.is_interior()) {
