@@ -175,7 +175,7 @@ fn rebuild(
                     lf.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|f| f.0 .0.map(|e| idx(&e))).collect();
                 let stiffness: Vec<([u32; 4], f64)> = layer_hinges.map(|h| (h.v, h.rest.weight)).collect();
                 let rest_at = |i: u32| rest.get(body.vertices[i as usize]).expect("vertex").0;
-                let poisson = material.map_or(0.0, |m| m.poisson);
+                let poisson = material.map_or(0.0, |m| m.poisson); // (a shell always has one)
                 let (q, g) = QuadraticBending::plate(&tris, rest_at, &stiffness, poisson);
                 el.quadratic.extend(q);
                 el.gaussian.extend(g);

@@ -8,8 +8,8 @@
 //! 2 pi - sum of its corner angles (Meyer, Desbrun, Schroeder, Barr 2003), so the term is
 //! (1 - nu) D_v (sum_corners theta - 2 pi) per interior vertex. It is split per triangle: each
 //! corner at an interior vertex carries c = (1 - nu) D_v times its angle's change from rest.
-//! The energy is not convex (a saddle raises it, a dome lowers it); the sum with the quadratic
-//! element is positive for 0 <= nu < 1, as the plate's is.
+//! The energy is not convex (a saddle raises it, a dome lowers it); in the continuum its sum
+//! with the quadratic element is the plate's, positive for 0 <= nu < 1.
 
 use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
