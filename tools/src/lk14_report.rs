@@ -9,9 +9,10 @@
 //! on case 10: 14 or 16 waves by seed, at any resolution) would swamp the discretization
 //! error. Writes speed_error_lk14.md, .csv and .svg (time per frame against shape error).
 //!
-//! Case 10 has more than one wrinkle mode within its discretization error: its 384 x 54
-//! reference holds 16 waves, as do the uniform meshes from 192 x 27 up, but a 512 x 72 run lands
-//! on a mode 17 % shorter, with either element (measured; hinge: 0.9 % more energy than 384 x 54).
+//! Case 10 has more than one wrinkle mode within its discretization error. With the hinge, the
+//! uniform meshes from 192 x 27 to the 384 x 54 reference share one (dominant wavelength 3.9 %
+//! above the kernels'), but a 512 x 72 run, with either element, lands on one 17 % below it
+//! (measured; hinge: 0.9 % more energy than 384 x 54).
 
 use std::fmt::Write as _;
 use std::path::Path;
