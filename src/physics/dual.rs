@@ -18,6 +18,21 @@ pub trait Real:
     fn recip(self) -> Self;
 }
 
+/// a - b, a . b and a x b on 3-arrays of any `Real` (closed-form gradients of the hinge and of
+/// the Gaussian term).
+#[inline]
+pub fn sub3<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+pub fn dot3<T: Real>(a: [T; 3], b: [T; 3]) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+pub fn cross3<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
 impl Real for f64 {
     #[inline]
     fn sqrt(self) -> Self {

@@ -14,7 +14,7 @@
 use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
 
-use super::dual::{Dual, Real};
+use super::dual::{cross3, dot3, sub3, Dual, Real};
 use super::psd::{project, Filter};
 use super::QuadraticBending;
 
@@ -51,10 +51,7 @@ pub fn energy(e: &GaussianElem, x: &[DVec3; 3]) -> f64 {
 /// d theta = (c ds - s dc) / (s^2 + c^2), ds/da = b x n / s, ds/db = n x a / s.
 /// Returns (d/dp0, d/dp1, d/dp2).
 fn angle_gradient<T: Real>(p: [[T; 3]; 3]) -> [[T; 3]; 3] {
-    let sub = |u: [T; 3], w: [T; 3]| [u[0] - w[0], u[1] - w[1], u[2] - w[2]];
-    let cross =
-        |u: [T; 3], w: [T; 3]| [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
-    let dot = |u: [T; 3], w: [T; 3]| u[0] * w[0] + u[1] * w[1] + u[2] * w[2];
+    let (sub, dot, cross) = (sub3::<T>, dot3::<T>, cross3::<T>);
     let (a, b) = (sub(p[1], p[0]), sub(p[2], p[0]));
     let n = cross(a, b);
     let (s, c) = (dot(n, n).sqrt(), dot(a, b));

@@ -7,7 +7,7 @@ use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
 use num_dual::DualNum;
 
-use super::dual::{Dual, Real};
+use super::dual::{cross3, dot3, sub3, Dual, Real};
 use serde::{Deserialize, Serialize};
 
 use super::psd::{project, Filter};
@@ -87,10 +87,7 @@ pub fn dihedral<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> D {
 /// the edge vertices by the projections of the opposite vertices on the edge. Generic so that
 /// first-order AD of it gives the exact Hessian.
 pub fn dihedral_gradient<D: Real>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
-    let sub = |a: [D; 3], b: [D; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    let dot = |a: [D; 3], b: [D; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let cross =
-        |a: [D; 3], b: [D; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    let (sub, dot, cross) = (sub3::<D>, dot3::<D>, cross3::<D>);
     let e = sub(x[1], x[0]);
     let l = dot(e, e).sqrt();
     let na = cross(e, sub(x[2], x[0]));
