@@ -8,7 +8,7 @@ use glam::{DVec2, DVec3};
 use skinsim::mesh::{grid, GridPattern};
 use skinsim::physics::psd::Filter;
 use skinsim::physics::{ConstitutiveModel, HingeModel, Lame};
-use skinsim::scene::schema::SolverSpec;
+use skinsim::solve::SolverSettings;
 use skinsim::solve::eval::assemble;
 use skinsim::solve::linear::CholeskySolver;
 use skinsim::solve::pattern::Pattern;
@@ -63,7 +63,7 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("newton_iteration");
     g.sample_size(10);
-    let settings = SolverSpec { max_iterations: 1, tolerance: 1e-30, ..Default::default() };
+    let settings = SolverSettings { max_iterations: 1, tolerance: 1e-30, ..Default::default() };
     for dofs in [10_000usize, 100_000] {
         let mut body = film(dofs);
         solve_frame(&mut body, &settings, 1.0).unwrap(); // pattern and symbolic factorization

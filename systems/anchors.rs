@@ -16,8 +16,7 @@ use skinsim::coupling::walk::{Projector, Stop, SurfacePoint};
 use std::collections::HashMap;
 
 use skinsim::model::*;
-use skinsim::scene::schema::SolveMode;
-use skinsim::solve::{AnchorElem, SolverBody};
+use skinsim::solve::{AnchorElem, SolveMode, SolverBody, SolverSettings};
 
 pub fn walk_anchors(
     skins: Query<(&Anchoring, &LayerAnchors, &LayerOf)>,
@@ -69,7 +68,7 @@ pub fn walk_anchors(
                 (to, state, stop, a0)
             })
             .collect();
-        let quasistatic = settings.get(patch.0).is_ok_and(|s| s.0.mode == SolveMode::Quasistatic);
+        let quasistatic = settings.get(patch.0).is_ok_and(|s| s.mode == SolveMode::Quasistatic);
         let mut report = AnchorReport { anchors: moved.len(), ..Default::default() };
         for (&a, (to, state, stop, a0)) in list.entities().iter().zip(moved) {
             report.add(&state, stop);

@@ -94,7 +94,8 @@ pub(crate) fn rebuild(
                 let stiffness: Vec<([u32; 4], f64)> = layer_hinges.map(|h| (h.v, h.rest.weight)).collect();
                 let rest_at = |i: u32| rest.get(body.vertices[i as usize]).expect("vertex").0;
                 let poisson = material.map_or(0.0, |m| m.poisson); // (a shell always has one)
-                let (q, g) = QuadraticBending::plate(&tris, rest_at, &stiffness, poisson);
+                let boundary = skinsim::mesh::boundary_vertices(&tris, body.vertices.len());
+                let (q, g) = QuadraticBending::plate(&tris, rest_at, &stiffness, &boundary, poisson);
                 el.quadratic.extend(q);
                 el.gaussian.extend(g);
             } else {

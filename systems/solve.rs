@@ -4,7 +4,7 @@
 use bevy_ecs::prelude::*;
 use rayon::prelude::*;
 use skinsim::model::*;
-use skinsim::solve::{solve_frame, SolverBody};
+use skinsim::solve::{solve_frame, SolverBody, SolverSettings};
 
 pub fn solve_patches(
     clock: Res<SimClock>,
@@ -18,7 +18,7 @@ pub fn solve_patches(
         .par_iter_mut()
         .map(|(patch, settings, body, anchors)| {
             let body: &mut SolverBody = body;
-            let out = solve_frame(body, &settings.0, clock.dt);
+            let out = solve_frame(body, settings, clock.dt);
             let counts =
                 (body.vertices.len(), body.face_count, body.tet_count, body.inverted_tets(), body.constraints.rows());
             (patch.name.clone(), counts, out, anchors.copied())
@@ -36,10 +36,10 @@ pub fn solve_patches(
                 converged: o.converged,
                 residual: o.residual,
                 energy: o.energy,
-                energy_membrane: o.parts[0],
-                energy_bending: o.parts[1],
-                energy_volume: o.parts[2],
-                energy_springs: o.parts[3],
+                energy_membrane: o.parts.membrane,
+                energy_bending: o.parts.bending,
+                energy_volume: o.parts.volume,
+                energy_springs: o.parts.springs,
                 regularized: o.regularized,
                 line_search_failures: o.line_search_failures,
                 solve_breakdown_ms: o.counters,

@@ -290,7 +290,7 @@ fn case6_euler_buckling_clamped_critical_load() {
 #[test]
 fn a_perfect_strip_still_buckles() {
     let mut scene = load("validation/euler_pinned.ron");
-    scene.patches[0].solver.perturbation = None;
+    scene.patches[0].perturbation = None;
     let d = plate_d(&scene);
     let mut sim = skinsim_systems::Simulation::new(&scene);
     let stats = sim.step();

@@ -10,7 +10,7 @@ pub mod topology;
 pub mod wrinkle_map;
 
 pub use generate::{grid, tet_slab, GridPattern};
-pub use topology::{check_surface, compact, edges, surface_of_tets, EdgeInfo, MeshError};
+pub use topology::{boundary_vertices, check_surface, compact, edges, surface_of_tets, EdgeInfo, MeshError};
 
 use glam::{DVec2, DVec3};
 

@@ -61,6 +61,16 @@ pub fn edges(faces: &[[u32; 3]]) -> Vec<EdgeInfo> {
     out
 }
 
+/// Per vertex (`n` of them): whether it lies on a boundary edge (an edge of one face).
+pub fn boundary_vertices(faces: &[[u32; 3]], n: usize) -> Vec<bool> {
+    let mut boundary = vec![false; n];
+    for e in edges(faces).iter().filter(|e| !e.is_interior()) {
+        boundary[e.v[0] as usize] = true;
+        boundary[e.v[1] as usize] = true;
+    }
+    boundary
+}
+
 /// Checks a surface: indices in range, no degenerate or duplicate faces, manifold edges
 /// (at most two faces each), every vertex used.
 pub fn check_surface(m: &SurfaceMesh) -> Result<(), MeshError> {

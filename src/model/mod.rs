@@ -6,7 +6,6 @@ use bevy_ecs::prelude::*;
 use glam::{DMat2, DMat3, DVec2, DVec3};
 
 use crate::physics::{ConstitutiveModel, HingeModel, HingeRest, Lame};
-use crate::scene::schema::SolverSpec;
 
 mod anchors;
 mod drivers;
@@ -26,10 +25,6 @@ pub struct Patch {
     /// Position of the patch in the scene file (stable ordering for outputs).
     pub index: u32,
 }
-
-/// The patch's solver settings, already in SI units.
-#[derive(Component, Clone, Debug)]
-pub struct SolverSettings(pub SolverSpec);
 
 /// What a layer is made of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

@@ -58,14 +58,15 @@ pub struct QuadraticBending {
 impl QuadraticBending {
     /// Elements for the interior vertices of a triangle mesh. `faces` index `rest` (the rest,
     /// flat, material positions); `edge_rigidity` gives D (N m) on edges, a vertex taking the
-    /// mean over its edges listed.
-    pub fn build(faces: &[[u32; 3]], rest: impl Fn(u32) -> DVec3, edge_rigidity: &[([u32; 2], f64)]) -> Self {
+    /// mean over its edges listed; `boundary` flags the vertices on the mesh's boundary
+    /// (`mesh::boundary_vertices`), which carry no element.
+    pub fn build(
+        faces: &[[u32; 3]],
+        rest: impl Fn(u32) -> DVec3,
+        edge_rigidity: &[([u32; 2], f64)],
+        boundary: &[bool],
+    ) -> Self {
         let n = faces.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
-        let mut boundary = vec![false; n];
-        for e in crate::mesh::edges(faces).iter().filter(|e| !e.is_interior()) {
-            boundary[e.v[0] as usize] = true;
-            boundary[e.v[1] as usize] = true;
-        }
         let mut weights: Vec<Vec<(u32, f64)>> = vec![Vec::new(); n];
         let mut area = vec![0.0; n];
         for f in faces {
@@ -97,7 +98,7 @@ impl QuadraticBending {
         }
         let mut out = QuadraticBending { start: vec![0], ..Default::default() };
         for v in 0..n {
-            if boundary[v] || weights[v].is_empty() || d_count[v] == 0 || area[v].is_nan() || area[v] <= 0.0 {
+            if boundary.get(v).copied().unwrap_or(false) || weights[v].is_empty() || d_count[v] == 0 || area[v].is_nan() || area[v] <= 0.0 {
                 continue;
             }
             let mut ws = std::mem::take(&mut weights[v]);
@@ -124,10 +125,15 @@ impl QuadraticBending {
 
     /// Elements from a layer's hinges, (x0, x1 the edge, x2, x3 the opposite vertices; rest
     /// weight k_b 3 |e|^2 / A): each edge's D read back from its hinge (`rigidity_of_hinge`).
-    pub fn from_hinges(faces: &[[u32; 3]], rest: impl Fn(u32) -> DVec3, hinges: &[([u32; 4], f64)]) -> Self {
+    pub fn from_hinges(
+        faces: &[[u32; 3]],
+        rest: impl Fn(u32) -> DVec3,
+        hinges: &[([u32; 4], f64)],
+        boundary: &[bool],
+    ) -> Self {
         let rigidity: Vec<([u32; 2], f64)> =
             hinges.iter().map(|(v, weight)| ([v[0], v[1]], rigidity_of_hinge(*weight, v.map(&rest)))).collect();
-        Self::build(faces, rest, &rigidity)
+        Self::build(faces, rest, &rigidity, boundary)
     }
 
     /// A layer's Kirchhoff plate: its elements from the hinges (`from_hinges`) and their
@@ -136,9 +142,10 @@ impl QuadraticBending {
         faces: &[[u32; 3]],
         rest: impl Fn(u32) -> DVec3,
         hinges: &[([u32; 4], f64)],
+        boundary: &[bool],
         poisson: f64,
     ) -> (Self, Vec<GaussianElem>) {
-        let q = Self::from_hinges(faces, &rest, hinges);
+        let q = Self::from_hinges(faces, &rest, hinges, boundary);
         let g = gaussian_bending::elements(&q, faces, &rest, poisson);
         (q, g)
     }
@@ -222,8 +229,9 @@ pub fn rigidity_of_hinge(weight: f64, x: [DVec3; 4]) -> f64 {
 mod tests {
     use super::*;
 
-    /// A jittered or stretched triangulated grid over [0, n) x [0, n): (rest positions, faces).
-    fn grid(n: u32, jitter: f64, stretch: f64) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    /// A jittered or stretched triangulated grid over [0, n) x [0, n): (rest positions, faces,
+    /// boundary vertices).
+    fn grid(n: u32, jitter: f64, stretch: f64) -> (Vec<DVec3>, Vec<[u32; 3]>, Vec<bool>) {
         let mut p = Vec::new();
         for j in 0..=n {
             for i in 0..=n {
@@ -252,17 +260,19 @@ mod tests {
                 }
             }
         }
-        (p, f)
+        let boundary = (0..=n).flat_map(|j| (0..=n).map(move |i| i == 0 || j == 0 || i == n || j == n)).collect();
+        (p, f, boundary)
     }
 
+    /// D = 1 on every edge (each interior edge listed twice: the mean is the same).
     fn unit_rigidity(faces: &[[u32; 3]]) -> Vec<([u32; 2], f64)> {
-        crate::mesh::edges(faces).iter().map(|e| (e.v, 1.0)).collect()
+        faces.iter().flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]]).map(|e| (e, 1.0)).collect()
     }
 
     /// Energy per area of the mesh wrapped on a cylinder of radius r about an axis at `angle`
     /// to y, over elements away from the boundary, against D / (2 r^2).
-    fn cylinder_error(p: &[DVec3], f: &[[u32; 3]], r: f64, angle: f64) -> f64 {
-        let q = QuadraticBending::build(f, |i| p[i as usize], &unit_rigidity(f));
+    fn cylinder_error(p: &[DVec3], f: &[[u32; 3]], boundary: &[bool], r: f64, angle: f64) -> f64 {
+        let q = QuadraticBending::build(f, |i| p[i as usize], &unit_rigidity(f), boundary);
         let (c, s) = (angle.cos(), angle.sin());
         let x: Vec<DVec3> = p
             .iter()
@@ -297,10 +307,10 @@ mod tests {
             ("jittered", 0.15, 1.0, 0.015),
             ("anisotropic 1:4, short edges across the axis", 0.1, 0.25, 0.05),
         ] {
-            let (p, f) = grid(40, jitter, stretch);
+            let (p, f, boundary) = grid(40, jitter, stretch);
             let angles: &[f64] = if stretch < 1.0 { &[0.0] } else { &[0.0, 0.4, std::f64::consts::FRAC_PI_2] };
             for &angle in angles {
-                let err = cylinder_error(&p, &f, 20.0 * stretch, angle);
+                let err = cylinder_error(&p, &f, &boundary, 20.0 * stretch, angle);
                 assert!(err.abs() < tol, "{name}, angle {angle}: {err:+.4}");
             }
         }
@@ -315,8 +325,8 @@ mod tests {
     fn with_its_gaussian_term_it_is_kirchhoffs_plate() {
         let (nu, r) = (0.3, 1000.0);
         for (name, jitter) in [("regular", 0.0), ("jittered", 0.15)] {
-            let (p, f) = grid(40, jitter, 1.0);
-            let q = QuadraticBending::build(&f, |i| p[i as usize], &unit_rigidity(&f));
+            let (p, f, boundary) = grid(40, jitter, 1.0);
+            let q = QuadraticBending::build(&f, |i| p[i as usize], &unit_rigidity(&f), &boundary);
             let g = gaussian_bending::elements(&q, &f, |i| p[i as usize], nu);
             let inside = |v: DVec3| v.x > 6.0 && v.x < 34.0 && v.y > 6.0 && v.y < 34.0;
             for (shape, sign, expected) in [("dome", 1.0, (1.0 + nu) / (r * r)), ("saddle", -1.0, (1.0 - nu) / (r * r))]
@@ -343,8 +353,8 @@ mod tests {
 
     #[test]
     fn flat_and_rigid_motions_cost_nothing() {
-        let (p, f) = grid(8, 0.3, 1.0);
-        let q = QuadraticBending::build(&f, |i| p[i as usize], &unit_rigidity(&f));
+        let (p, f, boundary) = grid(8, 0.3, 1.0);
+        let q = QuadraticBending::build(&f, |i| p[i as usize], &unit_rigidity(&f), &boundary);
         assert!(!q.is_empty());
         let rot = glam::DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
         // An in-plane affine stretch, then a rotation and a translation: still flat.

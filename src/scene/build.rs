@@ -22,7 +22,9 @@ pub struct BuiltScene {
 #[derive(Clone, Debug)]
 pub struct BuiltPatch {
     pub name: String,
-    pub solver: SolverSpec,
+    pub solver: crate::solve::SolverSettings,
+    /// The imperfection spawn applies to free shell vertices (SI lengths).
+    pub perturbation: Option<Perturbation>,
     pub layers: Vec<BuiltLayer>,
     pub drivers: Vec<BuiltDriver>,
     pub couplings: Vec<BuiltCoupling>,
@@ -258,8 +260,9 @@ impl Builder {
         if s.max_iterations == 0 {
             return Err(self.err(format!("{at}.solver.max_iterations"), "must be at least 1"));
         }
-        let mut solver = s.clone();
-        if let Some(pert) = &mut solver.perturbation {
+        let solver = s.settings();
+        let mut perturbation = s.perturbation;
+        if let Some(pert) = &mut perturbation {
             if !(pert.amplitude >= 0.0 && pert.amplitude.is_finite()) {
                 return Err(self.err(format!("{at}.solver.perturbation.amplitude"), "must be >= 0"));
             }
@@ -454,7 +457,7 @@ impl Builder {
         let anchors =
             p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &layers, &index, len, stress));
         let anchors = anchors.transpose()?;
-        Ok(BuiltPatch { name: p.name.clone(), solver, layers, drivers, couplings, anchors })
+        Ok(BuiltPatch { name: p.name.clone(), solver, perturbation, layers, drivers, couplings, anchors })
     }
 
     /// Validates a coupling and clusters its kernels (LK14 4.1) on a fine grid of the upper

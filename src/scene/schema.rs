@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use crate::mesh::GridPattern;
 use crate::model::LayerKind;
 use crate::physics::{ConstitutiveModel, HingeModel, Projection};
+use crate::solve::{KktMethod, LinearSolver, SolveMode, SolverSettings};
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -183,15 +184,6 @@ pub enum WavelengthSpec {
     Film { substrate: (f64, f64) },
 }
 
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
-pub enum SolveMode {
-    /// Equilibrium at every frame (LK14 eq. 5.1, H15 chapter 5).
-    #[default]
-    Quasistatic,
-    /// Implicit Euler in optimization form (LK14 eq. 5.2), time step = frame_time.
-    ImplicitEuler,
-}
-
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, rename = "Solver")]
 pub struct SolverSpec {
@@ -216,39 +208,43 @@ pub struct SolverSpec {
     pub linear: LinearSolver,
     /// How the constrained (KKT) system of a patch with kernels is solved (LK14 eq. 5.1).
     #[serde(default)]
-    pub kkt: crate::solve::kkt::KktMethod,
-}
-
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
-pub enum LinearSolver {
-    /// A sparse Cholesky factorization of every Newton Hessian.
-    #[default]
-    Direct,
-    /// Preconditioned conjugate gradients, the preconditioner an earlier Cholesky factor (of an
-    /// earlier iteration or frame); a fresh factorization only when CG does not converge in
-    /// `max_iterations` or meets negative curvature. Pays off when factorizing dominates (large
-    /// 3D patches): measured in the closing note of issue 3.
-    Krylov { max_iterations: u32 },
+    pub kkt: KktMethod,
 }
 
 fn default_tolerance() -> f64 {
-    1e-8
+    SolverSettings::default().tolerance
 }
 fn default_max_iterations() -> u32 {
-    50
+    SolverSettings::default().max_iterations
 }
 
 impl Default for SolverSpec {
     fn default() -> Self {
+        let s = SolverSettings::default();
         SolverSpec {
-            mode: SolveMode::Quasistatic,
-            tolerance: default_tolerance(),
-            max_iterations: default_max_iterations(),
-            projection: Projection::default(),
+            mode: s.mode,
+            tolerance: s.tolerance,
+            max_iterations: s.max_iterations,
+            projection: s.projection,
             perturbation: None,
-            stability_check: true,
-            linear: LinearSolver::Direct,
-            kkt: Default::default(),
+            stability_check: s.stability_check,
+            linear: s.linear,
+            kkt: s.kkt,
+        }
+    }
+}
+
+impl SolverSpec {
+    /// The solver's settings (the perturbation is the scene's: spawn applies it).
+    pub fn settings(&self) -> SolverSettings {
+        SolverSettings {
+            mode: self.mode,
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations,
+            projection: self.projection,
+            stability_check: self.stability_check,
+            linear: self.linear,
+            kkt: self.kkt,
         }
     }
 }

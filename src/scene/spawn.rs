@@ -27,7 +27,7 @@ pub fn spawn(world: &mut World, scene: &BuiltScene) -> Vec<Entity> {
 }
 
 fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
-    let patch = world.spawn((Patch { name: p.name.clone(), index }, SolverSettings(p.solver.clone()))).id();
+    let patch = world.spawn((Patch { name: p.name.clone(), index }, p.solver.clone())).id();
     let mut layer_vertices: Vec<Vec<Entity>> = Vec::new();
     let mut layers = Vec::new();
     let mut fixed: Vec<Vec<[bool; 3]>> =
@@ -65,7 +65,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         }
     }
     let mut all_rest = Vec::new();
-    let mut rng = p.solver.perturbation.map(|q| (q, rand_pcg::Pcg64::seed_from_u64(q.seed)));
+    let mut rng = p.perturbation.map(|q| (q, rand_pcg::Pcg64::seed_from_u64(q.seed)));
     for (li, l) in p.layers.iter().enumerate() {
         let mut l = l.clone();
         if let (Some((q, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
@@ -75,7 +75,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
             l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
         let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li], &mass[li], &owners);
         // A remesh gives its new vertices the same smooth imperfection.
-        if let (Some(q), Some(_)) = (p.solver.perturbation, l.remesh) {
+        if let (Some(q), Some(_)) = (p.perturbation, l.remesh) {
             if let Some(cell) = q.cell {
                 world.entity_mut(layer).insert(LayerImperfection(Imperfection::new(q.amplitude, cell, q.seed)));
             }

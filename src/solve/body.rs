@@ -4,7 +4,6 @@
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 
-use crate::model::PatchReport;
 use crate::physics::hinge::HingeRest;
 use crate::physics::membrane::MembraneRest;
 use crate::physics::tet::TetRest;
@@ -125,7 +124,6 @@ pub struct SolverBody {
     /// pattern or when the kernels are resampled.
     pub constraints: Constraints,
     pub kkt: Option<KktSystem>,
-    pub report: PatchReport,
 }
 
 impl SolverBody {
@@ -206,7 +204,6 @@ impl SolverBody {
             system: None,
             constraints: Constraints::default(),
             kkt: None,
-            report: Default::default(),
         }
     }
 }

@@ -17,8 +17,8 @@ use glam::DVec3;
 
 use super::body::SolverBody;
 use super::constraints::Constraints;
-use super::eval::energy;
-use super::eval::{assemble, Assembly};
+use super::error::{Quantity, SolveError};
+use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::kkt::KktSystem;
 use super::newton::{
     element_filter, line_search, step, FrameOutcome, FrameStart, ADAPTIVE_SWITCH, ARMIJO, FORCE_FLOOR, STALL,
@@ -26,7 +26,7 @@ use super::newton::{
 use super::pattern::{Pattern, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
-use crate::scene::schema::SolverSpec;
+use super::settings::SolverSettings;
 
 /// Largest constraint violation at convergence, relative to the patch size (PHYSICS.md 2).
 pub const CONSTRAINT_TOLERANCE: f64 = 1e-9;
@@ -35,9 +35,9 @@ pub(super) fn newton_kkt(
     body: &mut SolverBody,
     pattern: &Pattern,
     kkt: &mut KktSystem,
-    settings: &SolverSpec,
+    settings: &SolverSettings,
     dt: f64,
-) -> Result<FrameOutcome, String> {
+) -> Result<FrameOutcome, SolveError> {
     let (n, m) = (pattern.n, body.constraints.rows());
     let start = FrameStart::begin(body, settings.mode, dt);
     let inertia = start.inertia();
@@ -71,10 +71,10 @@ pub(super) fn newton_kkt(
                 lagrangian[d as usize] += jac[e] * lambda[r as usize];
             }
         }
-        let phi = parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(&body.x));
+        let phi = parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(&body.x));
         let gnorm = lagrangian.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
-            break Err(format!("non-finite state after {} Newton iterations", out.iterations));
+            break Err(SolveError::NonFinite { quantity: Quantity::State, iterations: out.iterations });
         }
         let reference = force_scale.max(FORCE_FLOOR * energy_scale / body.length_scale.max(f64::MIN_POSITIVE));
         let residual = if reference > 0.0 { gnorm / reference } else { 0.0 };
@@ -123,13 +123,10 @@ pub(super) fn newton_kkt(
                 out.regularized += 1;
                 continue;
             }
-            break Err(format!(
-                "the constrained Newton system has no descent direction after {} iterations",
-                out.iterations
-            ));
+            break Err(SolveError::NoDescent { iterations: out.iterations });
         }
-        let merit = |parts: &[f64; 4], x: &[DVec3]| {
-            parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x)) + rho * violation_l1(x)
+        let merit = |parts: &EnergyParts, x: &[DVec3]| {
+            parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x)) + rho * violation_l1(x)
         };
         let phi_merit = phi + rho * c_l1;
         if second_order_correction(body, pattern, kkt, &constraints, &dx, phi_merit, merit_slope, &merit) {
@@ -178,7 +175,7 @@ fn second_order_correction(
     dx: &[f64],
     phi_merit: f64,
     merit_slope: f64,
-    merit: &dyn Fn(&[f64; 4], &[DVec3]) -> f64,
+    merit: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
 ) -> bool {
     let x0 = body.x.clone();
     step(&mut body.x, &x0, &pattern.dof, dx, 1.0);

@@ -14,8 +14,23 @@ use crate::physics::{gaussian_bending, hinge, membrane, spring, tet, QuadraticBe
 /// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
 const CHUNK: usize = 1024;
 
-/// Energy by element kind: membrane, bending, volume, springs (J).
-pub type EnergyParts = [f64; 4];
+/// Energy by element kind (J).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EnergyParts {
+    pub membrane: f64,
+    /// Hinges, or the quadratic element and its Gaussian term.
+    pub bending: f64,
+    pub volume: f64,
+    /// Attachment springs and KCK18 anchors.
+    pub springs: f64,
+}
+
+impl EnergyParts {
+    /// The elastic energy: the parts summed in this order.
+    pub fn total(&self) -> f64 {
+        self.membrane + self.bending + self.volume + self.springs
+    }
+}
 
 #[inline]
 fn gather<const NV: usize>(x: &[DVec3], v: &[u32; NV]) -> [DVec3; NV] {
@@ -29,16 +44,16 @@ fn sum_chunks<E: Sync>(elems: &[E], f: impl Fn(&E) -> f64 + Sync) -> f64 {
 
 /// Energies only, by element kind.
 pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
-    [
-        sum_chunks(&elements.membranes, |e| membrane::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
-        sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &e.positions(x)))
+    EnergyParts {
+        membrane: sum_chunks(&elements.membranes, |e| membrane::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
+        bending: sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &e.positions(x)))
             + elements.quadratic.energy(x)
             + sum_chunks(&elements.gaussian, |e| gaussian_bending::energy(e, &gather(x, &e.v))),
-        sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
-        sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize]))
+        volume: sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
+        springs: sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize]))
             + sum_chunks(&elements.vertex_anchors, |e| anchor_energy(e, x))
             + sum_chunks(&elements.face_anchors, |e| anchor_energy(e, x)),
-    ]
+    }
 }
 
 fn anchor_energy<const NV: usize>(e: &AnchorElem<NV>, x: &[DVec3]) -> f64 {
@@ -68,32 +83,32 @@ pub fn assemble(
     values.iter_mut().for_each(|v| *v = 0.0);
     let mut out = Assembly::default();
     let mut acc = Scatter { dof: &pattern.dof, grad, values, force: 0.0 };
-    out.parts[0] = acc.class::<_, 3, 9>(
+    out.parts.membrane = acc.class::<_, 3, 9>(
         &el.membranes,
         &pattern.membranes,
         |e| e.v,
         |e| membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
     );
-    out.parts[1] = acc.class::<_, 4, 12>(
+    out.parts.bending = acc.class::<_, 4, 12>(
         &el.hinges,
         &pattern.hinges,
         |e| e.v,
         |e| hinge::eval(e.model, &e.rest, &e.positions(x), filter),
     );
-    out.parts[1] += acc.quadratic(&el.quadratic, &pattern.quadratic, x);
-    out.parts[1] += acc.class::<_, 3, 9>(
+    out.parts.bending += acc.quadratic(&el.quadratic, &pattern.quadratic, x);
+    out.parts.bending += acc.class::<_, 3, 9>(
         &el.gaussian,
         &pattern.gaussian,
         |e| e.v,
         |e| gaussian_bending::eval(e, &gather(x, &e.v), filter),
     );
-    out.parts[2] = acc.class::<_, 4, 12>(
+    out.parts.volume = acc.class::<_, 4, 12>(
         &el.tets,
         &pattern.tets,
         |e| e.v,
         |e| tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
     );
-    out.parts[3] = acc.class::<_, 2, 6>(
+    out.parts.springs = acc.class::<_, 2, 6>(
         &el.springs,
         &pattern.springs,
         |e| e.v,
@@ -111,13 +126,13 @@ pub fn assemble(
             (spring::energy(e.k, a, b), gv, h)
         },
     );
-    out.parts[3] += acc.class::<_, 1, 3>(
+    out.parts.springs += acc.class::<_, 1, 3>(
         &el.vertex_anchors,
         &pattern.vertex_anchors,
         |e| e.v,
         |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
     );
-    out.parts[3] += acc.class::<_, 3, 9>(
+    out.parts.springs += acc.class::<_, 3, 9>(
         &el.face_anchors,
         &pattern.face_anchors,
         |e| e.v,
@@ -303,11 +318,12 @@ mod tests {
     fn quadratic_bending_assembles_its_derivatives() {
         let m = grid(glam::DVec2::ONE, (5, 5), GridPattern::Equilateral, 0.0);
         let rigidity: Vec<_> = edges(&m.faces).iter().map(|e| (e.v, 2.0)).collect();
-        let quadratic = QuadraticBending::build(&m.faces, |i| m.rest[i as usize], &rigidity);
+        let boundary = crate::mesh::boundary_vertices(&m.faces, m.rest.len());
+        let quadratic = QuadraticBending::build(&m.faces, |i| m.rest[i as usize], &rigidity, &boundary);
         let gaussian = gaussian_bending::elements(&quadratic, &m.faces, |i| m.rest[i as usize], 0.3);
         assert!(!gaussian.is_empty());
         let el = Elements { quadratic, gaussian, ..Default::default() };
-        let bending = |y: &[DVec3]| energy(&el, y)[1];
+        let bending = |y: &[DVec3]| energy(&el, y).bending;
         let x: Vec<DVec3> = m
             .rest
             .iter()
@@ -319,7 +335,7 @@ mod tests {
         let pattern = Pattern::build(&x, &fixed, &tie, &el);
         let (mut grad, mut values) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
         let a = assemble(&el, &pattern, &x, Filter::Exact, &mut grad, &mut values);
-        assert!((a.parts[1] - bending(&x)).abs() < 1e-15);
+        assert!((a.parts.bending - bending(&x)).abs() < 1e-15);
         let h = 1e-6;
         for v in 0..x.len() {
             for k in 0..3 {

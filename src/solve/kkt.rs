@@ -36,14 +36,7 @@ use faer::{Conj, Mat, MatMut, Par, Side};
 use super::constraints::Constraints;
 use super::linear::{symmetric_product_into, CholeskySolver, NotPositiveDefinite};
 use super::pattern::{Pattern, NONE};
-
-/// How the KKT system is solved (a scene's `solver.kkt`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-pub enum KktMethod {
-    #[default]
-    Ldlt,
-    Schur,
-}
+use super::settings::KktMethod;
 
 /// Relative residual above which a KKT solve is refused (after refinement).
 const MAX_RESIDUAL: f64 = 1e-8;

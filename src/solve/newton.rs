@@ -4,13 +4,14 @@
 use glam::DVec3;
 
 use super::body::SolverBody;
-use super::eval::{assemble, energy, Assembly};
+use super::error::{Quantity, SolveError};
+use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::kkt::KktSystem;
 use super::linear::CholeskySolver;
 use super::pattern::{Pattern, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
-use crate::scene::schema::{LinearSolver, SolveMode, SolverSpec};
+use super::settings::{LinearSolver, SolveMode, SolverSettings};
 
 /// Armijo sufficient-decrease constant.
 pub(super) const ARMIJO: f64 = 1e-4;
@@ -33,7 +34,7 @@ pub struct FrameOutcome {
     pub converged: bool,
     pub residual: f64,
     pub energy: f64,
-    pub parts: [f64; 4],
+    pub parts: EnergyParts,
     pub regularized: u32,
     pub line_search_failures: u32,
     /// Times the solve left an unstable equilibrium along negative curvature.
@@ -156,7 +157,7 @@ impl Inertia<'_> {
 
 /// Solves one frame in place on `body.x` (prescribed coordinates already at their targets).
 /// Returns Err with a reason when the state becomes non-finite.
-pub fn solve_frame(body: &mut SolverBody, settings: &SolverSpec, dt: f64) -> Result<FrameOutcome, String> {
+pub fn solve_frame(body: &mut SolverBody, settings: &SolverSettings, dt: f64) -> Result<FrameOutcome, SolveError> {
     let (pattern, mut chol) = match body.system.take() {
         Some(system) => system,
         None => {
@@ -192,14 +193,14 @@ fn newton(
     body: &mut SolverBody,
     pattern: &Pattern,
     chol: &mut CholeskySolver,
-    settings: &SolverSpec,
+    settings: &SolverSettings,
     dt: f64,
-) -> Result<FrameOutcome, String> {
+) -> Result<FrameOutcome, SolveError> {
     let n = pattern.n;
     let start = FrameStart::begin(body, settings.mode, dt);
     let inertia = start.inertia();
     let total =
-        |parts: &[f64; 4], x: &[DVec3]| parts.iter().sum::<f64>() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
+        |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
     let energy_scale = body.elements.energy_scale(body.length_scale);
     let mut grad = vec![0.0; n];
@@ -225,11 +226,8 @@ fn newton(
         let phi = total(&parts, &body.x);
         let gnorm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
-            return Err(format!(
-                "non-finite {} after {} Newton iterations",
-                if phi.is_finite() { "gradient" } else { "energy" },
-                out.iterations
-            ));
+            let quantity = if phi.is_finite() { Quantity::Gradient } else { Quantity::Energy };
+            return Err(SolveError::NonFinite { quantity, iterations: out.iterations });
         }
         // Forces are measured against the internal forces, but never against less than those
         // of a 1e-6 strain: an unloaded patch has only round-off forces and is converged.
@@ -257,7 +255,7 @@ fn newton(
                 if filter != Filter::Exact {
                     assemble(&body.elements, pattern, &body.x, Filter::Exact, &mut grad, &mut values);
                 }
-                let energy_at = |x: &[DVec3]| energy(&body.elements, x).iter().sum::<f64>();
+                let energy_at = |x: &[DVec3]| energy(&body.elements, x).total();
                 if let Some(x) = leave_saddle(body, pattern, chol, &values, phi, energy_scale, &energy_at) {
                     body.x = x;
                     out.escapes += 1;
@@ -312,7 +310,7 @@ fn newton(
             }
             out.regularized += 1;
             if factorize_shifted(chol, pattern, &values, &mut scratch, 1e-8, 100.0, 8).is_none() {
-                return Err("the Hessian could not be factorized even with a diagonal shift".into());
+                return Err(SolveError::Unfactorizable);
             }
         }
         for (d, g) in dx.iter_mut().zip(&grad) {
@@ -366,7 +364,7 @@ pub(super) fn line_search(
     residual: f64,
     energy_scale: f64,
     tolerance: f64,
-    total: &dyn Fn(&[f64; 4], &[DVec3]) -> f64,
+    total: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
     out: &mut FrameOutcome,
 ) -> bool {
     let clock = std::time::Instant::now();

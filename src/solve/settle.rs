@@ -306,7 +306,8 @@ mod tests {
         }
         if element == BendingElement::Quadratic {
             let rigidity: Vec<_> = edges(&m.faces).iter().map(|e| (e.v, 6e-7)).collect();
-            el.quadratic = QuadraticBending::build(&m.faces, |i| m.rest[i as usize], &rigidity);
+            let boundary = crate::mesh::boundary_vertices(&m.faces, m.rest.len());
+            el.quadratic = QuadraticBending::build(&m.faces, |i| m.rest[i as usize], &rigidity, &boundary);
             el.gaussian = gaussian_bending::elements(&el.quadratic, &m.faces, |i| m.rest[i as usize], 0.45);
             return (el, m.rest.clone());
         }

@@ -1,0 +1,69 @@
+//! The solver's own settings: how Newton runs on a patch, when it stops, and how its linear
+//! systems are solved. The scene's `solver` block (`scene::schema::SolverSpec`) converts into
+//! these; the enums are also the scene format (as `physics::Projection` is).
+
+use bevy_ecs::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::physics::Projection;
+
+/// A patch's solver settings (a component on the patch entity).
+#[derive(Component, Clone, Debug, PartialEq)]
+pub struct SolverSettings {
+    pub mode: SolveMode,
+    /// Converged when |grad| <= tolerance x (internal force scale).
+    pub tolerance: f64,
+    pub max_iterations: u32,
+    pub projection: Projection,
+    /// Quasistatic mode: at convergence, test the exact Hessian; at an unstable equilibrium
+    /// (a saddle: the flat state past the buckling load) leave it along negative curvature.
+    pub stability_check: bool,
+    pub linear: LinearSolver,
+    pub kkt: KktMethod,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            mode: SolveMode::Quasistatic,
+            tolerance: 1e-8,
+            max_iterations: 50,
+            projection: Projection::default(),
+            stability_check: true,
+            linear: LinearSolver::Direct,
+            kkt: KktMethod::default(),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum SolveMode {
+    /// Equilibrium at every frame (LK14 eq. 5.1, H15 chapter 5).
+    #[default]
+    Quasistatic,
+    /// Implicit Euler in optimization form (LK14 eq. 5.2), time step = frame_time.
+    ImplicitEuler,
+}
+
+/// How Newton solves H dx = -g.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum LinearSolver {
+    /// A sparse Cholesky factorization of every Newton Hessian.
+    #[default]
+    Direct,
+    /// Preconditioned conjugate gradients, the preconditioner an earlier Cholesky factor (of an
+    /// earlier iteration or frame); a fresh factorization only when CG does not converge in
+    /// `max_iterations` or meets negative curvature. Pays off when factorizing dominates (large
+    /// 3D patches).
+    Krylov { max_iterations: u32 },
+}
+
+/// How the constrained (KKT) system of a patch with kernels is solved (LK14 eq. 5.1; `kkt`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum KktMethod {
+    /// One sparse LDL^T of the whole KKT matrix, with inertia correction.
+    #[default]
+    Ldlt,
+    /// The Cholesky of the Hessian and the dense Schur complement on the constraint rows.
+    Schur,
+}
