@@ -119,8 +119,7 @@ pub(crate) fn rebuild(
             }
         }
     }
-    let (lo, hi) = body.x.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
-    body.length_scale = (hi - lo).length();
+    body.length_scale = skinsim::mesh::bounds::diagonal(&body.x);
     body.elements = el;
     body.face_count = face_count;
     body.tet_count = tet_count;

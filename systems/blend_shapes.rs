@@ -37,7 +37,8 @@ pub fn apply_motions(
                     if let MotionKind::Compress { axis, predict: true } = m.kind {
                         if !fixed.0[axis] {
                             let c = motion.centre[axis];
-                            let ratio = (1.0 - m.keyframes.at(frame)) / (1.0 - m.keyframes.at(frame - 1.0));
+                            let at = |f: f64| m.keyframes.at(f, Interpolation::Linear);
+                            let ratio = (1.0 - at(frame)) / (1.0 - at(frame - 1.0));
                             p[axis] = c + (p[axis] - c) * ratio;
                         }
                     }

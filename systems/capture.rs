@@ -5,6 +5,7 @@
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DMat3, DVec2, DVec3};
 use skinsim::model::*;
+use skinsim::physics::hinge;
 use skinsim::physics::prestrain::{hinge_capture, membrane_release, tet_release};
 
 type CaptureLayer<'a> =
@@ -46,10 +47,8 @@ pub fn capture_prestrain(
             if let (Some(b), Some(edges)) = (bending, ledges) {
                 for &e in edges.entities() {
                     let Ok((ev, mut h)) = hinges.get_mut(e) else { continue };
-                    let mut p = [x(ev.0[0]), x(ev.0[1]), x(h.opposite[0]), x(h.opposite[1])];
-                    if let Some([a, c]) = h.image {
-                        p[3] += x(a) - x(c);
-                    }
+                    let v = [ev.0[0], ev.0[1], h.opposite[0], h.opposite[1]];
+                    let p = hinge::positions(v, h.image.map(|[a, c]| (a, c)), x);
                     let w = fraction(0.5 * (uv(ev.0[0]) + uv(ev.0[1])));
                     h.rest = hinge_capture(b.model, &h.rest, &p, w);
                 }

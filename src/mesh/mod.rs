@@ -1,6 +1,7 @@
 //! Mesh topology, generators, checks and OBJ input/output. Plain arrays, no ECS.
 
 pub mod bodies;
+pub mod bounds;
 pub mod generate;
 pub mod imperfection;
 pub mod obj;
@@ -9,6 +10,7 @@ pub mod shading;
 pub mod topology;
 pub mod wrinkle_map;
 
+pub use bounds::bounds;
 pub use generate::{grid, tet_slab, GridPattern};
 pub use topology::{boundary_vertices, check_surface, compact, edges, surface_of_tets, EdgeInfo, MeshError};
 

@@ -13,45 +13,27 @@ pub enum Interpolation {
     Smooth,
 }
 
-/// Piecewise-linear keyframes (frame, value); held constant outside their range.
+/// Keyframes (frame, value), interpolated between keys and held constant outside their range.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Keyframes(pub Vec<(u32, f64)>);
 
 impl Keyframes {
-    /// The value at `frame` with the given interpolation between keys.
-    pub fn at_with(&self, frame: f64, interpolation: Interpolation) -> f64 {
+    /// The value at `frame` with the given interpolation between keys (0 without keys).
+    pub fn at(&self, frame: f64, interpolation: Interpolation) -> f64 {
         let k = &self.0;
-        let Some(i) = k.iter().position(|&(f, _)| frame < f as f64) else {
-            return k.last().map_or(0.0, |l| l.1);
-        };
-        if i == 0 {
-            return k[0].1;
+        let (Some(first), Some(last)) = (k.first(), k.last()) else { return 0.0 };
+        if frame <= first.0 as f64 {
+            return first.1;
         }
-        let ((f0, v0), (f1, v1)) = (k[i - 1], k[i]);
-        let t = (frame - f0 as f64) / (f1 as f64 - f0 as f64);
-        let t = match interpolation {
-            Interpolation::Linear => t,
-            Interpolation::Smooth => t * t * (3.0 - 2.0 * t),
-        };
-        v0 + (v1 - v0) * t
-    }
-
-    pub fn at(&self, frame: f64) -> f64 {
-        let k = &self.0;
-        if k.is_empty() {
-            return 0.0;
-        }
-        if frame <= k[0].0 as f64 {
-            return k[0].1;
-        }
-        for w in k.windows(2) {
-            let (f0, v0) = (w[0].0 as f64, w[0].1);
-            let (f1, v1) = (w[1].0 as f64, w[1].1);
-            if frame <= f1 {
-                return v0 + (v1 - v0) * (frame - f0) / (f1 - f0);
+        let Some(w) = k.windows(2).find(|w| frame <= w[1].0 as f64) else { return last.1 };
+        let ((f0, v0), (f1, v1)) = ((w[0].0 as f64, w[0].1), (w[1].0 as f64, w[1].1));
+        match interpolation {
+            Interpolation::Linear => v0 + (v1 - v0) * (frame - f0) / (f1 - f0),
+            Interpolation::Smooth => {
+                let t = (frame - f0) / (f1 - f0);
+                v0 + (v1 - v0) * (t * t * (3.0 - 2.0 * t))
             }
         }
-        k[k.len() - 1].1
     }
 }
 
@@ -80,7 +62,7 @@ pub struct BlendShape {
 impl BlendShape {
     /// The weight of each target at `frame`.
     pub fn weights(&self, frame: f64) -> Vec<f64> {
-        self.targets.iter().map(|(_, k)| k.at_with(frame, self.interpolation)).collect()
+        self.targets.iter().map(|(_, k)| k.at(frame, self.interpolation)).collect()
     }
 }
 
@@ -94,7 +76,7 @@ pub struct Motion {
 impl Motion {
     /// Maps a point (vertex `index` of its layer, already mapped by earlier motions) at `frame`.
     pub fn apply(&self, index: usize, p: DVec3, centre: DVec3, frame: f64) -> DVec3 {
-        let v = self.keyframes.at(frame);
+        let v = self.keyframes.at(frame, Interpolation::Linear);
         match &self.kind {
             &MotionKind::Compress { axis, .. } => {
                 let mut q = p;
@@ -147,14 +129,14 @@ mod tests {
     #[test]
     fn keyframes_interpolate_linearly_and_smoothly() {
         let k = Keyframes(vec![(0, 0.0), (10, 1.0), (20, 0.5)]);
-        assert_eq!(k.at_with(-1.0, Interpolation::Smooth), 0.0);
-        assert_eq!(k.at_with(5.0, Interpolation::Linear), 0.5);
-        assert_eq!(k.at_with(5.0, Interpolation::Smooth), 0.5, "symmetric about the midpoint");
-        assert!((k.at_with(2.0, Interpolation::Smooth) - 0.104).abs() < 1e-12, "eases in");
-        assert_eq!(k.at_with(10.0, Interpolation::Smooth), 1.0);
-        assert_eq!(k.at_with(15.0, Interpolation::Linear), 0.75);
-        assert_eq!(k.at_with(99.0, Interpolation::Linear), 0.5);
-        assert_eq!(k.at(7.0), k.at_with(7.0, Interpolation::Linear));
+        assert_eq!(k.at(-1.0, Interpolation::Smooth), 0.0);
+        assert_eq!(k.at(5.0, Interpolation::Linear), 0.5);
+        assert_eq!(k.at(5.0, Interpolation::Smooth), 0.5, "symmetric about the midpoint");
+        assert!((k.at(2.0, Interpolation::Smooth) - 0.104).abs() < 1e-12, "eases in");
+        assert_eq!(k.at(10.0, Interpolation::Smooth), 1.0);
+        assert_eq!(k.at(15.0, Interpolation::Linear), 0.75);
+        assert_eq!(k.at(99.0, Interpolation::Linear), 0.5);
+        assert_eq!(k.at(7.0, Interpolation::Linear), 0.7);
     }
 
     #[test]

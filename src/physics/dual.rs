@@ -18,18 +18,18 @@ pub trait Real:
     fn recip(self) -> Self;
 }
 
-/// a - b, a . b and a x b on 3-arrays of any `Real` (closed-form gradients of the hinge and of
-/// the Gaussian term).
+/// a - b, a . b and a x b on 3-arrays of any number type with + - x: f64, `Dual`, and
+/// num-dual's types (the hinge's angle, its closed-form gradient and the Gaussian term's).
 #[inline]
-pub fn sub3<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+pub fn sub3<T: Copy + Sub<Output = T>>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 #[inline]
-pub fn dot3<T: Real>(a: [T; 3], b: [T; 3]) -> T {
+pub fn dot3<T: Copy + Add<Output = T> + Mul<Output = T>>(a: [T; 3], b: [T; 3]) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 #[inline]
-pub fn cross3<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+pub fn cross3<T: Copy + Sub<Output = T> + Mul<Output = T>>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 

@@ -62,18 +62,20 @@ impl HingeRest {
     }
 }
 
-fn cross<D: DualNum<Primitive = f64> + Copy>(a: [D; 3], b: [D; 3]) -> [D; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-fn dot<D: DualNum<Primitive = f64> + Copy>(a: [D; 3], b: [D; 3]) -> D {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn sub<D: DualNum<Primitive = f64> + Copy>(a: [D; 3], b: [D; 3]) -> [D; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+/// The four positions of a hinge (edge, then opposite vertices) given its vertex handles; on a
+/// periodic seam the second opposite vertex stands at its image, x(v3) + x(a) - x(b).
+#[inline]
+pub fn positions<I: Copy>(v: [I; 4], image: Option<(I, I)>, x: impl Fn(I) -> DVec3) -> [DVec3; 4] {
+    let mut p = v.map(&x);
+    if let Some((a, b)) = image {
+        p[3] += x(a) - x(b);
+    }
+    p
 }
 
 /// Signed dihedral angle (0 when flat), generic so that AD gives its derivatives.
 pub fn dihedral<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> D {
+    let (sub, dot, cross) = (sub3::<D>, dot3::<D>, cross3::<D>);
     let e = sub(x[1], x[0]);
     let na = cross(e, sub(x[2], x[0]));
     let nb = cross(sub(x[0], x[1]), sub(x[3], x[1]));

@@ -55,12 +55,12 @@ impl Builder {
             }
         }
         let rest = layer.mesh.rest();
-        let (lo, hi) = rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let (lo, hi) = mesh::bounds(rest);
         let centre = 0.5 * (lo + hi);
         let keys = Keyframes(weights.to_vec());
         Ok((0..=frames)
             .map(|f| {
-                let w = keys.at_with(f as f64, interpolation);
+                let w = keys.at(f as f64, interpolation);
                 rest.iter()
                     .map(|&p| {
                         let posed = match *pose {
@@ -146,8 +146,7 @@ impl Builder {
         if !(a.slide > 0.0 && a.slide <= 1.0) {
             return Err(self.err(format!("{at}.slide"), format!("must be in (0, 1] (got {})", a.slide)));
         }
-        let (lo, hi) =
-            body_mesh.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), p| (l.min(*p), h.max(*p)));
+        let (lo, hi) = mesh::bounds(&body_mesh.rest);
         let limit = match a.max_distance {
             Some(d) if d > 0.0 && d.is_finite() => d * len,
             Some(d) => return Err(self.err(format!("{at}.max_distance"), format!("must be > 0 (got {d})"))),
@@ -223,8 +222,7 @@ impl Builder {
         uv: &[glam::DVec2],
     ) -> Result<Box<dyn Fn(glam::DVec2) -> f64>, SceneError> {
         let Some(m) = &a.stiffness_map else { return Ok(Box::new(|_| 1.0)) };
-        let lo = uv.iter().fold(glam::DVec2::INFINITY, |a, p| a.min(*p));
-        let hi = uv.iter().fold(glam::DVec2::NEG_INFINITY, |a, p| a.max(*p));
+        let (lo, hi) = mesh::bounds(uv);
         let map = self.rgb_map(&format!("{at}.stiffness_map.map"), &m.map, lo, hi)?;
         let (k0, k1) = m.range;
         let reds = map.values.iter().map(|v| v[0] as f64);

@@ -537,8 +537,7 @@ impl Builder {
             let f = crate::model::factors_at(upper.properties.as_ref(), uv);
             lambda * f.wavelength * f.young.powf(e_power) * f.thickness.powf(h_power)
         };
-        let (lo, hi) =
-            upper_mesh.uv.iter().fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(a, b), u| (a.min(*u), b.max(*u)));
+        let (lo, hi) = mesh::bounds(&upper_mesh.uv);
         let (lambda_min, lambda_max) = upper_mesh
             .uv
             .iter()
@@ -864,7 +863,7 @@ impl Builder {
             .enumerate()
             .filter(|(_, l)| l.kind == LayerKind::Volume)
             .map(|(i, l)| {
-                let (lo, hi) = bbox(l.mesh.rest());
+                let (lo, hi) = mesh::bounds(l.mesh.rest());
                 (i, lo, hi)
             })
             .collect();
@@ -904,8 +903,7 @@ impl Builder {
         let (width, height) = (img.width() as usize, img.height() as usize);
         let values = img.pixels().map(|p| p.0[0] as f32 / 65535.0).collect();
         let uv = mesh.material_positions();
-        let lo = uv.iter().fold(DVec2::INFINITY, |a, p| a.min(*p));
-        let hi = uv.iter().fold(DVec2::NEG_INFINITY, |a, p| a.max(*p));
+        let (lo, hi) = mesh::bounds(&uv);
         Ok(WeightMap { width, height, values, lo, hi })
     }
 
@@ -1099,7 +1097,7 @@ impl Builder {
             LayerMesh::Surface(m) => (m.faces.clone(), vec![true; ra.len()]),
             LayerMesh::Volume(m) => {
                 let zmin = ra.iter().fold(f64::INFINITY, |z, p| z.min(p.z));
-                let tol = 1e-9 * bbox_diag(ra).max(1e-300);
+                let tol = 1e-9 * mesh::bounds::diagonal(ra).max(1e-300);
                 let bottom: Vec<bool> = ra.iter().map(|p| p.z <= zmin + tol).collect();
                 let faces = mesh::surface_of_tets(&m.tets)
                     .into_iter()
@@ -1109,7 +1107,7 @@ impl Builder {
             }
         };
         let rb = b.mesh.rest();
-        let size = bbox_diag(ra).max(1e-300);
+        let size = mesh::bounds::diagonal(ra).max(1e-300);
         let tol = 1e-9 * size;
         let key = |p: DVec3| ((p.x / tol).round() as i64, (p.y / tol).round() as i64);
         let mut lookup: HashMap<(i64, i64), u32> = HashMap::new();
@@ -1144,7 +1142,7 @@ impl Builder {
 
 /// Vertices that differ only along `axis` form a group; each is tied to the group's first.
 fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
-    let tol = 1e-9 * bbox_diag(rest).max(1e-300);
+    let tol = 1e-9 * mesh::bounds::diagonal(rest).max(1e-300);
     let (a, b) = match axis {
         0 => (1, 2),
         1 => (0, 2),
@@ -1172,7 +1170,7 @@ fn quadratic(layer: &BuiltLayer) -> bool {
 /// Pairs each vertex on the max side along `axis` with the min-side vertex at the same other
 /// coordinates.
 fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
-    let (lo, hi) = bbox(rest);
+    let (lo, hi) = mesh::bounds(rest);
     let tol = 1e-9 * (hi - lo).length().max(1e-300);
     let key = |p: &DVec3| {
         let mut q = *p;
@@ -1190,7 +1188,7 @@ fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
 
 /// Hinges joining a shell's boundary edges on the max side to the matching ones on the min side.
 fn periodic_seams(m: &SurfaceMesh, axis: usize) -> Vec<SeamHinge> {
-    let (lo, hi) = bbox(&m.rest);
+    let (lo, hi) = mesh::bounds(&m.rest);
     let tol = 1e-9 * (hi - lo).length().max(1e-300);
     let key = |v: u32| {
         let mut q = m.rest[v as usize];
@@ -1229,17 +1227,9 @@ fn mean_edge(m: &SurfaceMesh) -> f64 {
     total / (3 * m.faces.len()).max(1) as f64
 }
 
-fn bbox(points: &[DVec3]) -> (DVec3, DVec3) {
-    points.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
-}
-
-fn bbox_diag(points: &[DVec3]) -> f64 {
-    let (lo, hi) = bbox(points);
-    (hi - lo).length()
-}
 
 fn select_vertices(rest: &[DVec3], select: &Select, len: f64, offset: DVec3) -> Vec<u32> {
-    let (lo, hi) = bbox(rest);
+    let (lo, hi) = mesh::bounds(rest);
     let tol = 1e-9 * (hi - lo).length();
     rest.iter()
         .enumerate()

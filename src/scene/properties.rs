@@ -21,8 +21,7 @@ impl Builder {
         mesh: &LayerMesh,
     ) -> Result<LayerProperties, SceneError> {
         let uv = mesh.material_positions();
-        let lo = uv.iter().fold(DVec2::INFINITY, |a, p| a.min(*p));
-        let hi = uv.iter().fold(DVec2::NEG_INFINITY, |a, p| a.max(*p));
+        let (lo, hi) = crate::mesh::bounds(&uv);
         let map = self.rgb_map(&format!("{at}.map"), &p.map, lo, hi)?;
         let channel = |name: &str, k: usize, m: Option<(f64, f64)>| -> Result<Option<ChannelMap>, SceneError> {
             let Some((a, b)) = m else { return Ok(None) };

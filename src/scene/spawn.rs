@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
-use glam::{DMat2, DMat3, DVec2, DVec3};
+use glam::{DMat2, DMat3, DVec2};
 use rand::{Rng, SeedableRng};
 
 use super::build::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
@@ -86,7 +86,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     }
     let mut motion = PatchMotion::default();
     let mut captures = Vec::new();
-    let (lo, hi) = all_rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), q| (a.min(*q), b.max(*q)));
+    let (lo, hi) = mesh::bounds(&all_rest);
     motion.centre = 0.5 * (lo + hi);
     for d in &p.drivers {
         match d {

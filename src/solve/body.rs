@@ -36,11 +36,7 @@ impl HingeElem {
     /// The four positions of the hinge, the periodic image applied.
     #[inline]
     pub fn positions(&self, x: &[DVec3]) -> [DVec3; 4] {
-        let mut p = self.v.map(|i| x[i as usize]);
-        if let Some((a, b)) = self.image {
-            p[3] += x[a as usize] - x[b as usize];
-        }
-        p
+        crate::physics::hinge::positions(self.v, self.image, |i| x[i as usize])
     }
 }
 
@@ -186,8 +182,7 @@ impl SolverBody {
                 el.hinges.push(HingeElem { v, rest, model: hinge_model, image: None });
             }
         }
-        let (lo, hi) =
-            mesh.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let length_scale = crate::mesh::bounds::diagonal(&mesh.rest);
         SolverBody {
             topology_key: 0,
             vertices: Vec::new(),
@@ -199,7 +194,7 @@ impl SolverBody {
             tie: (0..n as u32).map(|i| (i, [false; 3])).collect(),
             face_count: mesh.faces.len(),
             tet_count: 0,
-            length_scale: (hi - lo).length(),
+            length_scale,
             elements: el,
             system: None,
             constraints: Constraints::default(),

@@ -50,7 +50,7 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
         for &w in &req.weights {
             let best = (0..=scene.scene.frames)
                 .min_by(|&a, &b| {
-                    let d = |f: u32| (keys.at_with(f as f64, blend.1) - w).abs();
+                    let d = |f: u32| (keys.at(f as f64, blend.1) - w).abs();
                     d(a).total_cmp(&d(b))
                 })
                 .expect("at least frame 0");
@@ -118,8 +118,7 @@ pub fn bake(
         for (li, (patch, layer)) in layers.iter().enumerate() {
             let (uv, pos, faces) = sim.layer_surface(patch, layer);
             let normals = vertex_normals(&pos, &faces);
-            let lo = uv.iter().fold(glam::DVec2::INFINITY, |a, p| a.min(*p));
-            let hi = uv.iter().fold(glam::DVec2::NEG_INFINITY, |a, p| a.max(*p));
+            let (lo, hi) = skinsim::mesh::bounds(&uv);
             let img = normal_map(&uv, &faces, &normals, req.size, lo, hi);
             let path = out.join(format!("{patch}_{layer}_{frame:05}.png"));
             img.save(&path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;

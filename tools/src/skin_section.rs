@@ -92,7 +92,7 @@ impl SkinSection {
             out.vertices = p.vertices;
             let (material, positions): (Vec<_>, Vec<_>) = sim.layer_points("skin", "corneum").into_iter().unzip();
             let prof = profile(&positions, &material, 0);
-            let strain = keys.at(frame as f64);
+            let strain = keys.at(frame as f64, skinsim::model::Interpolation::Linear);
             let amp = amplitude(&prof);
             let wavelength = peaks(&prof, true, 0.2).first().map_or(f64::NAN, |p| p.wavelength * 1e3);
             series.push((strain, amp, wavelength));
