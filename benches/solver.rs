@@ -12,11 +12,11 @@ use skinsim::solve::SolverSettings;
 use skinsim::solve::eval::assemble;
 use skinsim::solve::linear::CholeskySolver;
 use skinsim::solve::pattern::Pattern;
-use skinsim::solve::{solve_frame, SolverBody};
+use skinsim::solve::{solve_frame, PackedPatch};
 
 /// A square film with about `dofs` free DOFs, clamped on its x sides, slightly compressed
 /// and perturbed so that elements are in a generic (projected) state.
-pub fn film(dofs: usize) -> SolverBody {
+pub fn film(dofs: usize) -> PackedPatch {
     let side = ((dofs as f64 / 3.0).sqrt().ceil() as u32).max(4);
     let mut m = grid(DVec2::new(0.02, 0.02), (side, side), GridPattern::RightTriangle, 0.0);
     for (i, p) in m.rest.iter_mut().enumerate() {
@@ -25,7 +25,7 @@ pub fn film(dofs: usize) -> SolverBody {
     let young = 1e7;
     let h = 1e-4;
     let d = young * h * h * h / (12.0 * 0.91);
-    let mut body = SolverBody::from_shell(
+    let mut packed = PackedPatch::from_shell(
         &m,
         ConstitutiveModel::BazantHencky,
         Lame::plane_stress(young, 0.3),
@@ -36,25 +36,25 @@ pub fn film(dofs: usize) -> SolverBody {
             [held; 3]
         },
     );
-    for p in body.x.iter_mut() {
+    for p in packed.state.x.iter_mut() {
         p.x = 0.01 + (p.x - 0.01) * 0.99;
     }
-    body
+    packed
 }
 
 fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("assemble_and_factorize");
     g.sample_size(10);
     for dofs in [1_000usize, 10_000, 50_000, 100_000, 200_000] {
-        let body = film(dofs);
-        let pattern = Pattern::build(&body.x, &body.fixed, &body.tie, &body.elements);
+        let packed = film(dofs);
+        let pattern = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
         let mut chol = CholeskySolver::analyze(&pattern);
         let mut grad = vec![0.0; pattern.n];
         let mut values = vec![0.0; pattern.nnz()];
         g.bench_with_input(BenchmarkId::new("assemble", pattern.n), &(), |b, _| {
-            b.iter(|| assemble(&body.elements, &pattern, &body.x, Filter::Clamp, &mut grad, &mut values))
+            b.iter(|| assemble(&packed.elements, &pattern, &packed.state.x, Filter::Clamp, &mut grad, &mut values))
         });
-        assemble(&body.elements, &pattern, &body.x, Filter::Clamp, &mut grad, &mut values);
+        assemble(&packed.elements, &pattern, &packed.state.x, Filter::Clamp, &mut grad, &mut values);
         g.bench_with_input(BenchmarkId::new("refactorize", pattern.n), &(), |b, _| {
             b.iter(|| chol.factorize(&pattern, &values).unwrap())
         });
@@ -65,13 +65,13 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     let settings = SolverSettings { max_iterations: 1, tolerance: 1e-30, ..Default::default() };
     for dofs in [10_000usize, 100_000] {
-        let mut body = film(dofs);
-        solve_frame(&mut body, &settings, 1.0).unwrap(); // pattern and symbolic factorization
-        let x0 = body.x.clone();
+        let mut packed = film(dofs);
+        solve_frame(&mut packed, &settings, 1.0).unwrap(); // pattern and symbolic factorization
+        let x0 = packed.state.x.clone();
         g.bench_with_input(BenchmarkId::new("full", dofs), &(), |b, _| {
             b.iter(|| {
-                body.x.copy_from_slice(&x0);
-                solve_frame(&mut body, &settings, 1.0).unwrap()
+                packed.state.x.copy_from_slice(&x0);
+                solve_frame(&mut packed, &settings, 1.0).unwrap()
             })
         });
     }

@@ -7,16 +7,15 @@
 //!
 //! In quasistatic mode each free skin vertex then moves with its anchor (the skin rides on the
 //! body): Newton's first guess. Dynamic mode leaves the guess to the implicit-Euler predictor.
-//! Assemble packs the anchors as springs with the helpers at the end of this file.
+//! Assemble packs the anchors as springs (`assemble::anchor_springs`).
 
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 use rayon::prelude::*;
 use skinsim::coupling::walk::{Projector, Stop, SurfacePoint};
-use std::collections::HashMap;
 
 use skinsim::model::*;
-use skinsim::solve::{AnchorElem, SolveMode, SolverBody, SolverSettings};
+use skinsim::solve::{SolveMode, SolverSettings};
 
 pub fn walk_anchors(
     skins: Query<(&Anchoring, &LayerAnchors, &LayerOf)>,
@@ -86,45 +85,6 @@ pub fn walk_anchors(
         }
         if let Ok(mut r) = reports.get_mut(patch.0) {
             *r = report;
-        }
-    }
-}
-
-/// Anchor springs in element order (vertex anchors, then face anchors), with their entities.
-pub(crate) fn rebuild_anchor_springs(
-    body: &mut SolverBody,
-    patch_layers: &PatchLayers,
-    layers: &Query<crate::assemble::LayerItems>,
-    anchors: &Query<(&Anchor, &AnchorState)>,
-) {
-    let index: HashMap<Entity, u32> = body.vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
-    let (mut at_vertices, mut at_faces) = (Vec::new(), Vec::new());
-    for &l in patch_layers.entities() {
-        let Ok((.., Some(list), _)) = layers.get(l) else { continue };
-        for &a in list.entities() {
-            let Ok((anchor, state)) = anchors.get(a) else { continue };
-            let (k, target) = (anchor.stiffness, state.position);
-            match anchor.skin {
-                SkinPoint::Vertex(v) => at_vertices.push((a, AnchorElem { v: [index[&v]], w: [1.0], k, target })),
-                SkinPoint::Face(f) => {
-                    at_faces.push((a, AnchorElem { v: f.map(|v| index[&v]), w: [1.0 / 3.0; 3], k, target }))
-                }
-            }
-        }
-    }
-    body.anchors = at_vertices.iter().map(|a| a.0).chain(at_faces.iter().map(|a| a.0)).collect();
-    body.elements.vertex_anchors = at_vertices.into_iter().map(|a| a.1).collect();
-    body.elements.face_anchors = at_faces.into_iter().map(|a| a.1).collect();
-}
-
-/// The walk moved the anchors: new spring targets, the same pattern (Assemble, every frame).
-pub(crate) fn update_anchor_targets(body: &mut SolverBody, anchors: &Query<(&Anchor, &AnchorState)>) {
-    let nv = body.elements.vertex_anchors.len();
-    for (i, &a) in body.anchors.iter().enumerate() {
-        let target = anchors.get(a).expect("anchor of a live layer").1.position;
-        match body.elements.vertex_anchors.get_mut(i) {
-            Some(e) => e.target = target,
-            None => body.elements.face_anchors[i - nv].target = target,
         }
     }
 }

@@ -8,8 +8,6 @@ use bevy_ecs::prelude::*;
 use glam::DVec2;
 use skinsim::coupling::kernels::{adjust, sample, vertex_areas, Sample, SupportIndex};
 use skinsim::model::*;
-use skinsim::solve::constraints::{vertex_rings, Constraints, KernelRows};
-use skinsim::solve::SolverBody;
 
 /// One layer's material-space mesh, indexed for support queries.
 struct LayerSpace {
@@ -79,40 +77,4 @@ pub fn adjust_kernels(
         let (lower, b) = side(&samples.lower);
         *weights = KernelWeights { upper, lower, adjusted: [a, b] };
     }
-}
-
-/// A kernel and its (adjusted) weights, read by Assemble.
-pub(crate) type KernelItems<'a> = (&'a Kernel, Ref<'a, KernelWeights>);
-
-/// Packs the kernels' weights into constraint rows (LK14 eq. 4.1). A lower vertex's normal
-/// offset is the distance between the layers' mid-surfaces, half the sum of their thicknesses
-/// (a kinematic layer is a surface: thickness 0), each scaled by its property map at the kernel
-/// centre.
-pub(crate) fn kernel_rows(
-    body: &SolverBody,
-    patch_kernels: &PatchKernels,
-    kernels: &Query<KernelItems>,
-    layers: &Query<crate::assemble::LayerItems>,
-    faces: &Query<(&FaceVerts, Option<&FaceRest>, Option<&ModulusScale>)>,
-    thickness: &Query<(&Thickness, Option<&LayerProperties>)>,
-) -> Constraints {
-    let index: HashMap<Entity, u32> = body.vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
-    let packed_faces = |layer: Entity| -> Vec<[u32; 3]> {
-        let Ok((.., Some(lf), _, _, _, _, _)) = layers.get(layer) else { return Vec::new() };
-        lf.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|(fv, ..)| fv.0.map(|e| index[&e])).collect()
-    };
-    let half = |l: Entity, at: DVec2| thickness.get(l).map_or(0.0, |(t, p)| 0.5 * t.0 * factors_at(p, at).thickness);
-    let mut rings: HashMap<Entity, HashMap<u32, Vec<[u32; 3]>>> = HashMap::new();
-    let mut rows = Vec::new();
-    for &k in patch_kernels.entities() {
-        let Ok((kernel, weights)) = kernels.get(k) else { continue };
-        if weights.upper.is_empty() || weights.lower.is_empty() {
-            continue; // a kernel with an empty support on either layer constrains nothing
-        }
-        let ring = rings.entry(kernel.lower).or_insert_with(|| vertex_rings(&packed_faces(kernel.lower)));
-        let pack = |w: &LayerWeights| -> Vec<(u32, f64)> { w.iter().map(|(v, x)| (index[v], *x)).collect() };
-        let offset = half(kernel.upper, kernel.shape.centre) + half(kernel.lower, kernel.shape.centre);
-        rows.push(KernelRows::new(pack(&weights.upper), &pack(&weights.lower), offset, ring, &body.fixed));
-    }
-    Constraints::new(rows, &body.x)
 }

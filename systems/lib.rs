@@ -3,7 +3,6 @@
 
 pub mod anchors;
 pub mod assemble;
-mod assemble_rebuild;
 pub mod blend_shapes;
 pub mod capture;
 pub mod kernels;

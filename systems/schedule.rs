@@ -43,12 +43,12 @@ pub fn build_schedule() -> Schedule {
     s.add_systems(timed(Stage::ConstraintResample, kernels::resample_kernels));
     s.add_systems(timed(Stage::ConstraintAdjust, kernels::adjust_kernels));
     s.add_systems(timed(Stage::AnchorWalk, anchors::walk_anchors));
-    s.add_systems(timed(Stage::Assemble, assemble::gather_bodies));
+    s.add_systems(timed(Stage::Assemble, assemble::gather_packed));
     s.add_systems(timed(Stage::Settle, settle::settle_remeshed));
     s.add_systems(timed(Stage::Solve, solve::solve_patches));
     s.add_systems(timed(
         Stage::Writeback,
-        (writeback::scatter_bodies, capture::capture_prestrain.run_if(any_with_component::<PatchCaptures>)).chain(),
+        (writeback::scatter_packed, capture::capture_prestrain.run_if(any_with_component::<PatchCaptures>)).chain(),
     ));
     s.add_systems(timed(
         Stage::Log,

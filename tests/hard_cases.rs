@@ -80,7 +80,7 @@ fn a_solid_slab_compressed_to_half_keeps_every_tet_upright() {
         &[("keyframes: [(0, 0.0), (10, 0.2)]", "keyframes: [(0, 0.0), (10, 0.5)]")],
     );
     let mut sim = run_all_converged(&scene);
-    let mut q = sim.world.query::<&skinsim::solve::SolverBody>();
+    let mut q = sim.world.query::<&skinsim::solve::PackedPatch>();
     let body = q.single(&sim.world).unwrap();
     assert_eq!(body.inverted_tets(), 0, "Bazant-Hencky must not invert");
 }
@@ -103,10 +103,10 @@ fn three_layers(edits: &[(&str, &str)]) -> skinsim::scene::BuiltScene {
 
 fn upright_to_the_end(scene: &skinsim::scene::BuiltScene) {
     let mut sim = run_all_converged(scene);
-    let mut q = sim.world.query::<&skinsim::solve::SolverBody>();
+    let mut q = sim.world.query::<&skinsim::solve::PackedPatch>();
     let body = q.single(&sim.world).unwrap();
     assert_eq!(body.inverted_tets(), 0, "Bazant-Hencky must not invert");
-    assert!(body.x.iter().all(|p| p.is_finite()));
+    assert!(body.state.x.iter().all(|p| p.is_finite()));
 }
 
 #[test]

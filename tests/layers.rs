@@ -8,7 +8,8 @@ use bevy_ecs::prelude::*;
 use common::*;
 use skinsim::model::{Mass, Position, Spring};
 use skinsim::scene::load_str;
-use skinsim::solve::SolverBody;
+use skinsim::model::PackedIndex;
+use skinsim::solve::PackedPatch;
 use skinsim_systems::Simulation;
 
 const STACK: &str = r#"Scene(name: "stack", frames: 2, units: (length: Millimetre, stress: KiloPascal), patches: [
@@ -90,10 +91,10 @@ fn periodic_and_plane_strain_ties_hold_after_solving() {
         let s = sim.step();
         assert!(s.patches[0].converged, "{:?}", s.patches[0]);
     }
-    let mut q = sim.world.query::<&SolverBody>();
-    let body = q.single(&sim.world).unwrap();
+    let mut q = sim.world.query::<(&PackedPatch, &PackedIndex)>();
+    let (body, index) = q.single(&sim.world).unwrap();
     let rest: Vec<glam::DVec3> =
-        body.vertices.iter().map(|e| sim.world.get::<skinsim::model::RestPos>(*e).unwrap().0).collect();
+        index.vertices.iter().map(|e| sim.world.get::<skinsim::model::RestPos>(*e).unwrap().0).collect();
     let pos = |e: Entity| sim.world.get::<Position>(e).unwrap().0;
     let mut checked = 0;
     for (i, a) in rest.iter().enumerate() {
@@ -103,7 +104,7 @@ fn periodic_and_plane_strain_ties_hold_after_solving() {
                 && (b.x - 0.02).abs() < 1e-12
                 && (a.y - b.y).abs() < 1e-12
                 && (a.z - b.z).abs() < 1e-12;
-            let (pa, pb) = (pos(body.vertices[i]), pos(body.vertices[j]));
+            let (pa, pb) = (pos(index.vertices[i]), pos(index.vertices[j]));
             if same_column {
                 assert_eq!((pa.x, pa.z), (pb.x, pb.z), "plane strain");
                 checked += 1;
@@ -119,8 +120,8 @@ fn periodic_and_plane_strain_ties_hold_after_solving() {
     let imaged: Vec<_> = body.elements.hinges.iter().filter(|h| h.image.is_some()).collect();
     assert_eq!(imaged.len(), 1);
     // Across the seam the four positions form an ordinary hinge (opposite vertices on both sides).
-    let p = imaged[0].positions(&body.x);
+    let p = imaged[0].positions(&body.state.x);
     assert!(p[2].x < p[0].x && p[3].x > p[0].x, "{p:?}");
     // The compression really deformed the strip.
-    assert!(body.x.iter().any(|p| p.z.abs() > 1e-7));
+    assert!(body.state.x.iter().any(|p| p.z.abs() > 1e-7));
 }

@@ -9,7 +9,7 @@ use std::collections::HashSet;
 use bevy_ecs::prelude::*;
 use common::*;
 use skinsim::model::*;
-use skinsim::solve::SolverBody;
+use skinsim::solve::PackedPatch;
 use skinsim_systems::Simulation;
 
 const SCENE: &str = "lk14/remesh_one_layer_quick.ron";
@@ -268,7 +268,7 @@ fn a_remeshed_layer_bends_with_quadratic_elements() {
         interior.remove(&e.v[0]);
         interior.remove(&e.v[1]);
     }
-    let mut q = sim.world.query::<&SolverBody>();
+    let mut q = sim.world.query::<&PackedPatch>();
     let body = q.single(&sim.world).unwrap();
     println!(
         "quadratic elements after remeshing: {} ({} interior vertices)",

@@ -7,15 +7,16 @@ use common::*;
 use glam::DVec3;
 use skinsim::model::RestPos;
 use skinsim::physics::{gaussian_bending, hinge, BendingElement};
-use skinsim::scene::build::{BuiltDriver, LayerMesh};
+use skinsim::scene::built::{BuiltDriver, LayerMesh};
 use skinsim::solve::eval::vertex_gradient;
-use skinsim::solve::SolverBody;
+use skinsim::model::PackedIndex;
+use skinsim::solve::PackedPatch;
 
 /// Plate bending stiffness D = E h^3 / (12 (1 - nu^2)) of the first layer.
 fn plate_d(scene: &skinsim::scene::BuiltScene) -> f64 {
     let l = &scene.patches[0].layers[0];
     let m = l.material.unwrap();
-    m.young * l.thickness.unwrap().powi(3) / (12.0 * (1.0 - m.poisson * m.poisson))
+    skinsim::physics::plate_rigidity(m.young, l.thickness.unwrap(), m.poisson)
 }
 
 /// Hinge energy per unit area of a sheet bent into a cylinder, against Kirchhoff D / (2 R^2).
@@ -39,7 +40,7 @@ fn cylinder_error(mut scene: skinsim::scene::BuiltScene, axis: usize, jitter: f6
     let BuiltDriver::Bend { keyframes, .. } = &scene.patches[0].drivers[1] else { unreachable!() };
     let r = 1.0 / keyframes[0].1;
     let (mut sim, _) = run(&scene);
-    let mut q = sim.world.query::<&SolverBody>();
+    let mut q = sim.world.query::<&PackedPatch>();
     let body = q.single(&sim.world).unwrap();
     // One layer: packed vertex i is mesh vertex i.
     let margin = 3e-3;
@@ -52,7 +53,7 @@ fn cylinder_error(mut scene: skinsim::scene::BuiltScene, axis: usize, jitter: f6
         }
         let e = b - a;
         let direction = e.y.atan2(e.x).to_degrees().rem_euclid(180.0).round() as i64 % 180;
-        let x = h.v.map(|v| body.x[v as usize]);
+        let x = h.v.map(|v| body.state.x[v as usize]);
         let w = hinge::energy(h.model, &h.rest, &x);
         let tri = |a: u32, b: u32, c: u32| {
             let p = |i: u32| rest_mesh[i as usize];
@@ -115,7 +116,7 @@ fn cylinder_error_by_area(
     let BuiltDriver::Bend { keyframes, .. } = &scene.patches[0].drivers[1] else { unreachable!() };
     let r = 1.0 / keyframes[0].1;
     let (mut sim, _) = run(&scene);
-    let mut q = sim.world.query::<&SolverBody>();
+    let mut q = sim.world.query::<&PackedPatch>();
     let body = q.single(&sim.world).unwrap();
     let quad = &body.elements.quadratic;
     let margin = 0.15 * (hi - lo);
@@ -123,18 +124,18 @@ fn cylinder_error_by_area(
         |p: DVec3| p.x > lo.x + margin.x && p.x < hi.x - margin.x && p.y > lo.y + margin.y && p.y < hi.y - margin.y;
     let (mut energy, mut area) = (0.0, 0.0);
     for i in (0..quad.len()).filter(|&i| inside(rest[quad.stencil(i).0[0] as usize])) {
-        energy += quad.element_energy(i, &body.x);
+        energy += quad.element_energy(i, &body.state.x);
         area += quad.area[i];
     }
     // The quadratic element's Gaussian term: the corners at vertices inside (K = 0 on a
     // cylinder, so it adds only the discretization's defects).
     for g in &body.elements.gaussian {
-        let corners = gaussian_bending::corner_energies(g, &g.v.map(|v| body.x[v as usize]));
+        let corners = gaussian_bending::corner_energies(g, &g.v.map(|v| body.state.x[v as usize]));
         energy += (0..3).filter(|&k| inside(rest[g.v[k] as usize])).map(|k| corners[k]).sum::<f64>();
     }
     for h in body.elements.hinges.iter().filter(|h| inside(0.5 * (rest[h.v[0] as usize] + rest[h.v[1] as usize]))) {
         let p = h.v.map(|v| rest[v as usize]);
-        energy += hinge::energy(h.model, &h.rest, &h.positions(&body.x));
+        energy += hinge::energy(h.model, &h.rest, &h.positions(&body.state.x));
         area += ((p[1] - p[0]).cross(p[2] - p[0]).length() + (p[1] - p[0]).cross(p[3] - p[0]).length()) / 6.0;
     }
     rel(energy / area, d / (2.0 * r * r))
@@ -221,18 +222,18 @@ fn elastica(shortening: f64) -> (f64, f64, f64) {
 
 /// End force per unit width at the x-max end and midspan deflection, both from the World.
 fn strip_measures(sim: &mut skinsim_systems::Simulation) -> (f64, f64, f64) {
-    let mut q = sim.world.query::<&SolverBody>();
-    let body = q.single(&sim.world).unwrap();
-    let rest: Vec<DVec3> = body.vertices.iter().map(|e| sim.world.get::<RestPos>(*e).unwrap().0).collect();
+    let mut q = sim.world.query::<(&PackedPatch, &PackedIndex)>();
+    let (body, index) = q.single(&sim.world).unwrap();
+    let rest: Vec<DVec3> = index.vertices.iter().map(|e| sim.world.get::<RestPos>(*e).unwrap().0).collect();
     let (lo, hi) = rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
-    let g = vertex_gradient(&body.elements, &body.x);
+    let g = vertex_gradient(&body.elements, &body.state.x);
     // Every vertex whose x is held on the x-max half carries part of the end force.
-    let held: Vec<bool> = body.fixed.iter().map(|f| f[0]).collect();
+    let held: Vec<bool> = body.state.fixed.iter().map(|f| f[0]).collect();
     let mid = 0.5 * (lo.x + hi.x);
     let force: f64 =
         rest.iter().zip(&g).zip(&held).filter(|((p, _), h)| **h && p.x > mid).map(|((_, g), _)| -g.x).sum();
     let width = hi.y - lo.y;
-    let deflection = body.x.iter().map(|p| p.z.abs()).fold(0.0, f64::max);
+    let deflection = body.state.x.iter().map(|p| p.z.abs()).fold(0.0, f64::max);
     (force / width, deflection, hi.x - lo.x)
 }
 

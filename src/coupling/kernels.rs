@@ -27,11 +27,17 @@ pub fn wavelength_two_layer(constant: f64, h_upper: f64, h_lower: f64, e_upper: 
     constant * (h_upper * h_lower).sqrt() * (e_upper / e_lower).powf(1.0 / 6.0)
 }
 
+/// How eq. 3.1's wavelength scales with the upper layer's (E, h): E^1/6 h^1/2.
+pub const TWO_LAYER_EXPONENTS: (f64, f64) = (1.0 / 6.0, 0.5);
+
 /// Stiff film on a deep substrate (Chen & Hutchinson 2004): lambda = 2 pi h (Ebar_f / (3 Ebar_s))^(1/3),
 /// with plane-strain moduli Ebar = E / (1 - nu^2).
 pub fn wavelength_film(h: f64, ebar_film: f64, ebar_substrate: f64) -> f64 {
     2.0 * std::f64::consts::PI * h * (ebar_film / (3.0 * ebar_substrate)).cbrt()
 }
+
+/// How the film wavelength scales with the film's (E, h): E^1/3 h.
+pub const FILM_EXPONENTS: (f64, f64) = (1.0 / 3.0, 1.0);
 
 /// Greedy farthest-point clustering (LK14 4.1) on a mesh of material space: distances are
 /// Dijkstra paths over `edges` with cost |e| / mean(lambda at its ends), i.e. in wavelengths.

@@ -6,6 +6,7 @@ pub mod generate;
 pub mod imperfection;
 pub mod obj;
 pub mod remesh;
+pub mod select;
 pub mod shading;
 pub mod topology;
 pub mod wrinkle_map;

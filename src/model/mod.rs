@@ -1,6 +1,7 @@
 //! The ECS vocabulary (ARCHITECTURE.md 3): small components, named relationships, resources.
 //!
-//! Entity handles are the identity; the solver's packed indices are a cache (solve::body).
+//! Entity handles are the identity; the solver's packed indices are a cache (`PackedIndex`
+//! beside `solve::PackedPatch`).
 
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DMat3, DVec2, DVec3};
@@ -83,6 +84,29 @@ pub struct Bending {
     /// Hinge elements, or quadratic ones built from the hinges' stiffness (D = 6 k_b).
     pub element: crate::physics::BendingElement,
     pub stiffness: f64,
+}
+
+/// The map between a patch's entities and its packed solver indices (beside the patch's
+/// `solve::PackedPatch`), rebuilt by Assemble when the topology changes.
+#[derive(Component, Clone, Debug)]
+pub struct PackedIndex {
+    /// The topology fingerprint (epochs and element counts of the patch's layers) it was built
+    /// for; `u64::MAX` before the first rebuild.
+    pub key: u64,
+    /// Packed vertex index -> entity, and entity -> packed vertex index.
+    pub vertices: Vec<Entity>,
+    pub index: std::collections::HashMap<Entity, u32>,
+    /// Anchor entities in element order: the vertex anchors, then the face anchors.
+    pub anchors: Vec<Entity>,
+    /// Faces and tets of the patch's solved layers (for reports).
+    pub faces: usize,
+    pub tets: usize,
+}
+
+impl Default for PackedIndex {
+    fn default() -> Self {
+        PackedIndex { key: u64::MAX, vertices: Vec::new(), index: Default::default(), anchors: Vec::new(), faces: 0, tets: 0 }
+    }
 }
 
 /// Bumped whenever a layer's connectivity changes; the solver rebuilds its pattern then.

@@ -130,6 +130,68 @@ pub struct PatchReport {
     pub anchors: Option<super::AnchorReport>,
 }
 
+/// A patch's size in a frame, for its report.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PatchSize {
+    pub vertices: usize,
+    pub faces: usize,
+    pub tets: usize,
+    pub inverted: usize,
+    pub constraints: usize,
+}
+
+impl PatchReport {
+    /// The report of a frame the solver finished (converged or not).
+    pub fn solved(
+        name: String,
+        size: PatchSize,
+        o: &crate::solve::FrameOutcome,
+        anchors: Option<super::AnchorReport>,
+    ) -> Self {
+        PatchReport {
+            name,
+            vertices: size.vertices,
+            faces: size.faces,
+            tets: size.tets,
+            newton_iterations: o.iterations,
+            converged: o.converged,
+            residual: o.residual,
+            energy: o.energy,
+            energy_membrane: o.parts.membrane,
+            energy_bending: o.parts.bending,
+            energy_volume: o.parts.volume,
+            energy_springs: o.parts.springs,
+            regularized: o.regularized,
+            line_search_failures: o.line_search_failures,
+            escapes: o.escapes,
+            factorizations: o.factorizations,
+            cg_iterations: o.cg_iterations,
+            constraints: size.constraints,
+            constraint_violation: o.constraint_violation,
+            start_energy: o.start_energy,
+            start_violation: o.start_violation,
+            inverted: size.inverted,
+            solve_breakdown_ms: o.counters,
+            anchors,
+        }
+    }
+
+    /// The report of a frame whose solve failed (non-finite, no descent): no energy, no residual.
+    pub fn failed(name: String, size: PatchSize, anchors: Option<super::AnchorReport>) -> Self {
+        PatchReport {
+            name,
+            vertices: size.vertices,
+            faces: size.faces,
+            tets: size.tets,
+            converged: false,
+            residual: f64::NAN,
+            energy: f64::NAN,
+            anchors,
+            ..Default::default()
+        }
+    }
+}
+
 /// Per-patch reports of the last solved frame, in patch order.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct FrameReport {

@@ -29,6 +29,11 @@ impl Lame {
     }
 }
 
+/// Kirchhoff's plate rigidity D = E h^3 / (12 (1 - nu^2)) (N m) of a shell of thickness h.
+pub fn plate_rigidity(young: f64, thickness: f64, poisson: f64) -> f64 {
+    young * thickness.powi(3) / (12.0 * (1.0 - poisson * poisson))
+}
+
 /// Which energy density a layer uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub enum ConstitutiveModel {

@@ -20,7 +20,7 @@ pub mod tet;
 
 pub use gaussian_bending::GaussianElem;
 pub use hinge::{HingeModel, HingeRest};
-pub use material::{ConstitutiveModel, Lame};
+pub use material::{plate_rigidity, ConstitutiveModel, Lame};
 pub use psd::Projection;
 pub use quadratic_bending::{BendingElement, QuadraticBending};
 

@@ -5,7 +5,8 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::build::{Builder, BuiltLayer, LayerMesh};
+use super::build::Builder;
+use super::built::{BuiltLayer, LayerMesh};
 use super::schema::{AnchorSpec, PoseSpec};
 use super::SceneError;
 use crate::coupling::walk::{BodySurface, Projector, SurfacePoint};

@@ -4,13 +4,19 @@
 //! input error without running; `spawn` turns a built scene into entities.
 
 pub mod anchors;
-pub mod build;
+mod build;
+pub mod built;
+mod couplings;
+mod drivers;
 pub mod error;
+mod layers;
+mod meshes;
 pub mod properties;
 pub mod schema;
 pub mod spawn;
 pub mod targets;
 
-pub use build::{load, load_str, BuiltScene};
+pub use build::{load, load_str};
+pub use built::BuiltScene;
 pub use error::SceneError;
 pub use spawn::spawn;

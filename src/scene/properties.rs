@@ -4,7 +4,8 @@
 use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 
-use super::build::{Builder, LayerMesh};
+use super::build::Builder;
+use super::built::LayerMesh;
 use super::schema::{MapSource, PropertiesSpec};
 use super::SceneError;
 use crate::model::{ChannelMap, LayerProperties, RgbMap};

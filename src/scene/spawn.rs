@@ -7,7 +7,7 @@ use bevy_ecs::prelude::*;
 use glam::{DMat2, DMat3, DVec2};
 use rand::{Rng, SeedableRng};
 
-use super::build::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
+use super::built::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
 use super::schema::Perturbation;
 use crate::mesh;
 use crate::mesh::imperfection::Imperfection;
@@ -202,7 +202,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     if !captures.is_empty() {
         world.entity_mut(patch).insert(PatchCaptures(captures));
     }
-    world.entity_mut(patch).insert(crate::solve::SolverBody { topology_key: u64::MAX, ..Default::default() });
+    world.entity_mut(patch).insert((crate::solve::PackedPatch::default(), PackedIndex::default()));
     patch
 }
 

@@ -3,7 +3,8 @@
 
 use glam::{DVec2, DVec3};
 
-use super::build::{Builder, BuiltTarget, LayerMesh};
+use super::build::Builder;
+use super::built::{BuiltTarget, LayerMesh};
 use super::schema::{BlendTargetSpec, TargetShape};
 use super::SceneError;
 use crate::mesh;

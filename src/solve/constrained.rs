@@ -15,7 +15,7 @@
 
 use glam::DVec3;
 
-use super::body::SolverBody;
+use super::packed::PackedPatch;
 use super::constraints::Constraints;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
@@ -32,20 +32,20 @@ use super::settings::SolverSettings;
 pub const CONSTRAINT_TOLERANCE: f64 = 1e-9;
 
 pub(super) fn newton_kkt(
-    body: &mut SolverBody,
+    packed: &mut PackedPatch,
     pattern: &Pattern,
     kkt: &mut KktSystem,
     settings: &SolverSettings,
     dt: f64,
 ) -> Result<FrameOutcome, SolveError> {
-    let (n, m) = (pattern.n, body.constraints.rows());
-    let start = FrameStart::begin(body, settings.mode, dt);
+    let (n, m) = (pattern.n, packed.constraints.rows());
+    let start = FrameStart::begin(packed, settings.mode, dt);
     let inertia = start.inertia();
-    let constraints = std::mem::take(&mut body.constraints);
+    let constraints = std::mem::take(&mut packed.constraints);
     let violation_l1 =
         |x: &[DVec3]| constraints.values(x).iter().map(|c| c.x.abs() + c.y.abs() + c.z.abs()).sum::<f64>();
 
-    let energy_scale = body.elements.energy_scale(body.length_scale);
+    let energy_scale = packed.elements.energy_scale(packed.length_scale);
     let (mut grad, mut values, mut dx) = (vec![0.0; n], vec![0.0; pattern.nnz()], vec![0.0; n]);
     let (mut lambda, mut next_lambda, mut jac) = (vec![0.0; m], vec![0.0; m], Vec::new());
     let mut rho = 0.0f64;
@@ -56,12 +56,12 @@ pub(super) fn newton_kkt(
         let filter = element_filter(settings.projection, projecting);
         let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } =
-            assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
+            assemble(&packed.elements, pattern, &packed.state.x, filter, &mut grad, &mut values);
         if let Some(inr) = &inertia {
-            force_scale += inr.add_to(pattern, &body.x, &mut grad, &mut values);
+            force_scale += inr.add_to(pattern, &packed.state.x, &mut grad, &mut values);
         }
-        let c: Vec<f64> = constraints.values(&body.x).iter().flat_map(|v| v.to_array()).collect();
-        constraints.jacobian(&body.x, &mut jac);
+        let c: Vec<f64> = constraints.values(&packed.state.x).iter().flat_map(|v| v.to_array()).collect();
+        constraints.jacobian(&packed.state.x, &mut jac);
         out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
         // Lagrangian gradient g + J^T lambda.
         let mut lagrangian = grad.clone();
@@ -71,14 +71,14 @@ pub(super) fn newton_kkt(
                 lagrangian[d as usize] += jac[e] * lambda[r as usize];
             }
         }
-        let phi = parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(&body.x));
+        let phi = parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(&packed.state.x));
         let gnorm = lagrangian.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
             break Err(SolveError::NonFinite { quantity: Quantity::State, iterations: out.iterations });
         }
-        let reference = force_scale.max(FORCE_FLOOR * energy_scale / body.length_scale.max(f64::MIN_POSITIVE));
+        let reference = force_scale.max(FORCE_FLOOR * energy_scale / packed.length_scale.max(f64::MIN_POSITIVE));
         let residual = if reference > 0.0 { gnorm / reference } else { 0.0 };
-        let violation = c.iter().fold(0.0f64, |a, v| a.max(v.abs())) / body.length_scale.max(f64::MIN_POSITIVE);
+        let violation = c.iter().fold(0.0f64, |a, v| a.max(v.abs())) / packed.length_scale.max(f64::MIN_POSITIVE);
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;
@@ -129,14 +129,14 @@ pub(super) fn newton_kkt(
             parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x)) + rho * violation_l1(x)
         };
         let phi_merit = phi + rho * c_l1;
-        if second_order_correction(body, pattern, kkt, &constraints, &dx, phi_merit, merit_slope, &merit) {
+        if second_order_correction(packed, pattern, kkt, &constraints, &dx, phi_merit, merit_slope, &merit) {
             out.iterations += 1;
             tracing::debug!(iteration = out.iterations, residual, alpha = 1.0, "constrained Newton full step");
             std::mem::swap(&mut lambda, &mut next_lambda);
             continue;
         }
         let accepted = line_search(
-            body,
+            packed,
             pattern,
             &dx,
             merit_slope,
@@ -154,9 +154,9 @@ pub(super) fn newton_kkt(
         }
         std::mem::swap(&mut lambda, &mut next_lambda);
     };
-    body.constraints = constraints;
+    packed.constraints = constraints;
     if result.is_ok() {
-        start.finish(body);
+        start.finish(packed);
     }
     result.map(|_| out)
 }
@@ -165,10 +165,10 @@ pub(super) fn newton_kkt(
 /// l1 merit function only because the constraints curve, and backtracking then crawls). When
 /// the full step fails the Armijo test, a correction back onto the constraints - one more solve
 /// with the same factorization - is added and the corrected full step tried; true when it is
-/// taken (body.x moved; also when the full step passes by itself), false with body.x unchanged.
+/// taken (the positions moved; also when the full step passes by itself), false with them unchanged.
 #[allow(clippy::too_many_arguments)]
 fn second_order_correction(
-    body: &mut SolverBody,
+    packed: &mut PackedPatch,
     pattern: &Pattern,
     kkt: &mut KktSystem,
     constraints: &Constraints,
@@ -177,25 +177,25 @@ fn second_order_correction(
     merit_slope: f64,
     merit: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
 ) -> bool {
-    let x0 = body.x.clone();
-    step(&mut body.x, &x0, &pattern.dof, dx, 1.0);
-    let full = merit(&energy(&body.elements, &body.x), &body.x);
+    let x0 = packed.state.x.clone();
+    step(&mut packed.state.x, &x0, &pattern.dof, dx, 1.0);
+    let full = merit(&energy(&packed.elements, &packed.state.x), &packed.state.x);
     let armijo = |v: f64| v.is_finite() && v <= phi_merit + ARMIJO * merit_slope;
     if armijo(full) {
         return true;
     }
     if !constraints.is_empty() {
-        let c: Vec<f64> = constraints.values(&body.x).iter().flat_map(|v| v.to_array()).collect();
+        let c: Vec<f64> = constraints.values(&packed.state.x).iter().flat_map(|v| v.to_array()).collect();
         let mut correction = vec![0.0; dx.len()];
         if kkt.correct(&c, &mut correction).is_ok() {
             let corrected: Vec<f64> = dx.iter().zip(&correction).map(|(a, b)| a + b).collect();
-            step(&mut body.x, &x0, &pattern.dof, &corrected, 1.0);
-            if armijo(merit(&energy(&body.elements, &body.x), &body.x)) {
+            step(&mut packed.state.x, &x0, &pattern.dof, &corrected, 1.0);
+            if armijo(merit(&energy(&packed.elements, &packed.state.x), &packed.state.x)) {
                 tracing::trace!("second-order correction taken");
                 return true;
             }
         }
     }
-    body.x.copy_from_slice(&x0);
+    packed.state.x.copy_from_slice(&x0);
     false
 }

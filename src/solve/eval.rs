@@ -6,7 +6,7 @@ use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
 
-use super::body::{AnchorElem, Elements};
+use super::elements::{AnchorElem, Elements};
 use super::pattern::{pairs, Pattern, DOUBLE, NONE};
 use crate::physics::psd::Filter;
 use crate::physics::{gaussian_bending, hinge, membrane, spring, tet, QuadraticBending};

@@ -1,20 +1,23 @@
-//! The per-patch solver: a packed body copied out of the ECS, a sparse pattern with cached
-//! scatter maps and symbolic factorization, and Newton with Armijo backtracking.
+//! The per-patch solver: a patch packed out of the ECS (`packed`), a sparse pattern with cached
+//! scatter maps and symbolic factorization, and Newton with Armijo backtracking. Measured and
+//! rejected variants are recorded in `README.md` beside this file.
 
-pub mod body;
 mod constrained;
 pub mod constraints;
+pub mod elements;
 pub mod error;
 pub mod eval;
 pub mod kkt;
 pub mod linear;
 pub mod newton;
 pub mod ordering;
+pub mod packed;
 pub mod pattern;
 pub mod settings;
 pub mod settle;
 
-pub use body::{AnchorElem, Elements, HingeElem, MembraneElem, SolverBody, SpringElem, TetElem};
+pub use elements::{AnchorElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
 pub use error::SolveError;
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};
+pub use packed::{PackedPatch, PackedState, SolverCache};
 pub use settings::{KktMethod, LinearSolver, SolveMode, SolverSettings};

@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 
-use super::body::SolverBody;
+use super::packed::PackedPatch;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::kkt::KktSystem;
@@ -62,14 +62,14 @@ pub struct SolveCounters {
 }
 
 /// The implicit-Euler predictor x_n + h v_n (prescribed coordinates stay); empty when quasistatic.
-fn predictor(body: &SolverBody, dynamic: bool, dt: f64) -> Vec<DVec3> {
+fn predictor(packed: &PackedPatch, dynamic: bool, dt: f64) -> Vec<DVec3> {
     if !dynamic {
         return Vec::new();
     }
-    body.x
+    packed.state.x
         .iter()
-        .zip(&body.v)
-        .zip(&body.fixed)
+        .zip(&packed.state.v)
+        .zip(&packed.state.fixed)
         .map(|((x, v), f)| {
             let mut p = *x + *v * dt;
             for k in 0..3 {
@@ -93,17 +93,17 @@ pub(super) struct FrameStart {
 }
 
 impl FrameStart {
-    /// Syncs ties and, when dynamic, moves the body to the predictor.
-    pub(super) fn begin(body: &mut SolverBody, mode: SolveMode, dt: f64) -> FrameStart {
-        body.sync_ties();
+    /// Syncs ties and, when dynamic, moves the state to the predictor.
+    pub(super) fn begin(packed: &mut PackedPatch, mode: SolveMode, dt: f64) -> FrameStart {
+        packed.state.sync_ties();
         let dynamic = mode == SolveMode::ImplicitEuler;
-        let x_n = body.x.clone();
-        let x_hat = predictor(body, dynamic, dt);
+        let x_n = packed.state.x.clone();
+        let x_hat = predictor(packed, dynamic, dt);
         if dynamic {
-            body.x.copy_from_slice(&x_hat);
+            packed.state.x.copy_from_slice(&x_hat);
         }
-        // (a copy: the line search mutates the body)
-        let mass = if dynamic { body.mass.clone() } else { Vec::new() };
+        // (a copy: the line search mutates the state)
+        let mass = if dynamic { packed.state.mass.clone() } else { Vec::new() };
         FrameStart { dynamic, dt, x_n, x_hat, mass }
     }
 
@@ -112,9 +112,9 @@ impl FrameStart {
     }
 
     /// Implicit Euler: the velocities of the step taken.
-    pub(super) fn finish(&self, body: &mut SolverBody) {
+    pub(super) fn finish(&self, packed: &mut PackedPatch) {
         if self.dynamic {
-            for ((v, x), x0) in body.v.iter_mut().zip(&body.x).zip(&self.x_n) {
+            for ((v, x), x0) in packed.state.v.iter_mut().zip(&packed.state.x).zip(&self.x_n) {
                 *v = (*x - *x0) / self.dt;
             }
         }
@@ -155,54 +155,54 @@ impl Inertia<'_> {
     }
 }
 
-/// Solves one frame in place on `body.x` (prescribed coordinates already at their targets).
+/// Solves one frame in place on `packed.state.x` (prescribed coordinates already at their targets).
 /// Returns Err with a reason when the state becomes non-finite.
-pub fn solve_frame(body: &mut SolverBody, settings: &SolverSettings, dt: f64) -> Result<FrameOutcome, SolveError> {
-    let (pattern, mut chol) = match body.system.take() {
+pub fn solve_frame(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result<FrameOutcome, SolveError> {
+    let (pattern, mut chol) = match packed.cache.system.take() {
         Some(system) => system,
         None => {
-            let p = Pattern::build(&body.x, &body.fixed, &body.tie, &body.elements);
+            let p = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
             let s = CholeskySolver::analyze(&p);
             (p, s)
         }
     };
-    if !body.constraints.is_empty() {
-        let mut kkt = match body.kkt.take() {
+    if !packed.constraints.is_empty() {
+        let mut kkt = match packed.cache.kkt.take() {
             Some(k) => k,
-            None => KktSystem::build(&pattern, &body.constraints, settings.kkt),
+            None => KktSystem::build(&pattern, &packed.constraints, settings.kkt),
         };
         let before = kkt.factorizations;
-        let result = super::constrained::newton_kkt(body, &pattern, &mut kkt, settings, dt).map(|mut o| {
+        let result = super::constrained::newton_kkt(packed, &pattern, &mut kkt, settings, dt).map(|mut o| {
             o.factorizations = (kkt.factorizations - before) as u32;
             o
         });
-        body.kkt = Some(kkt);
-        body.system = Some((pattern, chol));
+        packed.cache.kkt = Some(kkt);
+        packed.cache.system = Some((pattern, chol));
         return result;
     }
     let before = chol.factorizations;
-    let result = newton(body, &pattern, &mut chol, settings, dt).map(|mut o| {
+    let result = newton(packed, &pattern, &mut chol, settings, dt).map(|mut o| {
         o.factorizations = (chol.factorizations - before) as u32;
         o
     });
-    body.system = Some((pattern, chol));
+    packed.cache.system = Some((pattern, chol));
     result
 }
 
 fn newton(
-    body: &mut SolverBody,
+    packed: &mut PackedPatch,
     pattern: &Pattern,
     chol: &mut CholeskySolver,
     settings: &SolverSettings,
     dt: f64,
 ) -> Result<FrameOutcome, SolveError> {
     let n = pattern.n;
-    let start = FrameStart::begin(body, settings.mode, dt);
+    let start = FrameStart::begin(packed, settings.mode, dt);
     let inertia = start.inertia();
     let total =
         |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
-    let energy_scale = body.elements.energy_scale(body.length_scale);
+    let energy_scale = packed.elements.energy_scale(packed.length_scale);
     let mut grad = vec![0.0; n];
     let mut values = vec![0.0; pattern.nnz()];
     let mut dx = vec![0.0; n];
@@ -218,12 +218,12 @@ fn newton(
         let filter = element_filter(settings.projection, projecting);
         let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } =
-            assemble(&body.elements, pattern, &body.x, filter, &mut grad, &mut values);
+            assemble(&packed.elements, pattern, &packed.state.x, filter, &mut grad, &mut values);
         out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
         if let Some(inr) = &inertia {
-            force_scale += inr.add_to(pattern, &body.x, &mut grad, &mut values);
+            force_scale += inr.add_to(pattern, &packed.state.x, &mut grad, &mut values);
         }
-        let phi = total(&parts, &body.x);
+        let phi = total(&parts, &packed.state.x);
         let gnorm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
             let quantity = if phi.is_finite() { Quantity::Gradient } else { Quantity::Energy };
@@ -231,7 +231,7 @@ fn newton(
         }
         // Forces are measured against the internal forces, but never against less than those
         // of a 1e-6 strain: an unloaded patch has only round-off forces and is converged.
-        let reference = force_scale.max(FORCE_FLOOR * energy_scale / body.length_scale.max(f64::MIN_POSITIVE));
+        let reference = force_scale.max(FORCE_FLOOR * energy_scale / packed.length_scale.max(f64::MIN_POSITIVE));
         residual = if reference > 0.0 { (gnorm / reference).max(0.0) } else { 0.0 };
         out.energy = phi;
         out.parts = parts;
@@ -253,11 +253,11 @@ fn newton(
             let check = settings.stability_check && inertia.is_none() && n > 0 && out.escapes < MAX_ESCAPES;
             if check {
                 if filter != Filter::Exact {
-                    assemble(&body.elements, pattern, &body.x, Filter::Exact, &mut grad, &mut values);
+                    assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut grad, &mut values);
                 }
-                let energy_at = |x: &[DVec3]| energy(&body.elements, x).total();
-                if let Some(x) = leave_saddle(body, pattern, chol, &values, phi, energy_scale, &energy_at) {
-                    body.x = x;
+                let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
+                if let Some(x) = leave_saddle(packed, pattern, chol, &values, phi, energy_scale, &energy_at) {
+                    packed.state.x = x;
                     out.escapes += 1;
                     out.converged = false;
                     history.clear();
@@ -282,7 +282,7 @@ fn newton(
                 let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
                 if slope < 0.0 {
                     if line_search(
-                        body,
+                        packed,
                         pattern,
                         &dx,
                         slope,
@@ -326,17 +326,17 @@ fn newton(
                 continue;
             }
             // Not a descent direction (round-off at convergence): fall back to steepest descent.
-            let scale = 1.0 / gnorm.max(f64::MIN_POSITIVE) * 1e-6 * body.length_scale;
+            let scale = 1.0 / gnorm.max(f64::MIN_POSITIVE) * 1e-6 * packed.length_scale;
             for (d, g) in dx.iter_mut().zip(&grad) {
                 *d = -g * scale;
             }
         }
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        if !line_search(body, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out) {
+        if !line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out) {
             break;
         }
     }
-    start.finish(body);
+    start.finish(packed);
     Ok(out)
 }
 
@@ -356,7 +356,7 @@ pub(super) fn element_filter(projection: Projection, projecting: bool) -> Filter
 /// when no step is accepted (the state is restored; near round-off it counts as converged).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn line_search(
-    body: &mut SolverBody,
+    packed: &mut PackedPatch,
     pattern: &Pattern,
     dx: &[f64],
     slope: f64,
@@ -368,15 +368,15 @@ pub(super) fn line_search(
     out: &mut FrameOutcome,
 ) -> bool {
     let clock = std::time::Instant::now();
-    let x0 = body.x.clone();
+    let x0 = packed.state.x.clone();
     let mut alpha = 1.0;
     let mut accepted = false;
     // Near the solution the decrease can fall below the energy's round-off: there a full
     // Newton step is accepted if the energy stays within that band.
     let noise = ROUND_OFF * energy_scale;
     for i in 0..MAX_HALVINGS {
-        step(&mut body.x, &x0, &pattern.dof, dx, alpha);
-        let trial = total(&energy(&body.elements, &body.x), &body.x);
+        step(&mut packed.state.x, &x0, &pattern.dof, dx, alpha);
+        let trial = total(&energy(&packed.elements, &packed.state.x), &packed.state.x);
         let armijo = trial <= phi + ARMIJO * alpha * slope;
         let flat = i == 0 && residual < ADAPTIVE_SWITCH && trial <= phi + noise;
         if trial.is_finite() && (armijo || flat) {
@@ -390,7 +390,7 @@ pub(super) fn line_search(
     tracing::debug!(iteration = out.iterations, residual, alpha, slope, phi, accepted, "newton");
     if !accepted {
         out.line_search_failures += 1;
-        body.x.copy_from_slice(&x0);
+        packed.state.x.copy_from_slice(&x0);
         // At round-off level no decrease is measurable: accept a near-converged state.
         if residual <= 1e3 * tolerance {
             out.converged = true;
@@ -444,7 +444,7 @@ fn pcg(
 /// along its most negative curvature direction (shifted inverse iteration with a Cholesky of
 /// H + sigma I, then a search over the step length and sign); None at a stable equilibrium.
 fn leave_saddle(
-    body: &SolverBody,
+    packed: &PackedPatch,
     pattern: &Pattern,
     chol: &mut CholeskySolver,
     h: &[f64],
@@ -480,10 +480,10 @@ fn leave_saddle(
     let noise = ROUND_OFF * energy_scale;
     let mut best: Option<(f64, Vec<DVec3>)> = None;
     for sign in [1.0, -1.0] {
-        let mut t = 1e-5 * body.length_scale;
+        let mut t = 1e-5 * packed.length_scale;
         for _ in 0..10 {
-            let mut x = body.x.clone();
-            step(&mut x, &body.x, &pattern.dof, &y, sign * t / max);
+            let mut x = packed.state.x.clone();
+            step(&mut x, &packed.state.x, &pattern.dof, &y, sign * t / max);
             let e = energy_at(&x);
             // (a NaN energy ends the search too)
             if e.is_nan() || e >= phi - noise {

@@ -1,7 +1,7 @@
 //! DOF numbering, the lower-triangular CSC pattern over free DOFs, and per-element scatter maps
 //! (computed once per topology so assembly is a plain indexed add).
 
-use super::body::Elements;
+use super::elements::Elements;
 
 pub const NONE: u32 = u32::MAX;
 /// Set on a scatter position when two different local DOFs of an element are one shared

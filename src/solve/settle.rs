@@ -13,7 +13,7 @@
 use glam::{DMat3, DVec3};
 use nalgebra::{SMatrix, SVector};
 
-use super::body::Elements;
+use super::elements::Elements;
 use super::constraints::Constraints;
 use crate::physics::psd::Filter;
 use crate::physics::{gaussian_bending, hinge, membrane};

@@ -9,7 +9,7 @@ use image::RgbImage;
 use skinsim::mesh::shading::vertex_normals;
 use skinsim::mesh::wrinkle_map::{blend, normal_map};
 use skinsim::model::{Keyframes, LayerKind};
-use skinsim::scene::build::BuiltDriver;
+use skinsim::scene::built::BuiltDriver;
 use skinsim::scene::BuiltScene;
 use skinsim_systems::Simulation;
 

@@ -1,0 +1,168 @@
+//! A scene after validation: meshes built, layer names resolved to indices, every value in SI
+//! units. What `load` returns and `spawn` reads.
+
+use std::path::PathBuf;
+
+use glam::{DVec2, DVec3};
+
+use super::schema::{Perturbation, Scene};
+use crate::mesh::select::SeamHinge;
+use crate::mesh::{SurfaceMesh, TetMesh};
+use crate::model::{LayerKind, WeightMap};
+
+/// A validated scene with its meshes built, in SI units.
+#[derive(Clone, Debug)]
+pub struct BuiltScene {
+    pub path: PathBuf,
+    pub scene: Scene,
+    pub patches: Vec<BuiltPatch>,
+}
+
+#[derive(Clone, Debug)]
+pub struct BuiltPatch {
+    pub name: String,
+    pub solver: crate::solve::SolverSettings,
+    /// The imperfection spawn applies to free shell vertices (SI lengths).
+    pub perturbation: Option<Perturbation>,
+    pub layers: Vec<BuiltLayer>,
+    pub drivers: Vec<BuiltDriver>,
+    pub couplings: Vec<BuiltCoupling>,
+    pub anchors: Option<super::anchors::BuiltAnchors>,
+}
+
+/// A coupling's kernels, clustered at load (SI units).
+#[derive(Clone, Debug)]
+pub struct BuiltCoupling {
+    pub upper: usize,
+    pub lower: usize,
+    pub kernels: Vec<crate::coupling::kernels::KernelShape>,
+    pub adjust: bool,
+}
+
+#[derive(Clone, Debug)]
+pub enum LayerMesh {
+    Surface(SurfaceMesh),
+    Volume(TetMesh),
+}
+
+impl LayerMesh {
+    pub fn rest(&self) -> &[DVec3] {
+        match self {
+            LayerMesh::Surface(m) => &m.rest,
+            LayerMesh::Volume(m) => &m.rest,
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct BuiltLayer {
+    pub name: String,
+    pub kind: LayerKind,
+    pub mesh: LayerMesh,
+    /// Per mesh vertex: Some((layer, vertex)) when the vertex is another (earlier) layer's.
+    pub shared: Vec<Option<(usize, u32)>>,
+    /// The prism grid of a volume slab, for layers stacked on it.
+    pub slab: Option<SlabGrid>,
+    pub material: Option<crate::model::Material>,
+    pub thickness: Option<f64>,
+    pub bending: Option<crate::model::Bending>,
+    pub prestrain: Option<crate::model::LayerPrestrain>,
+    /// (relative amplitude, seed) of the per-element modulus randomization.
+    pub randomize: Option<(f64, u64)>,
+    pub properties: Option<crate::model::LayerProperties>,
+    pub remesh: Option<crate::model::RemeshSettings>,
+}
+
+impl LayerMesh {
+    /// Material (2D) positions of the mesh's vertices, as spawned into `MaterialPos`.
+    pub fn material_positions(&self) -> Vec<DVec2> {
+        match self {
+            LayerMesh::Surface(m) => m.uv.clone(),
+            LayerMesh::Volume(m) => m.rest.iter().map(|p| p.truncate()).collect(),
+        }
+    }
+}
+
+/// The structured grid of a tetrahedral slab (SI, offset included).
+#[derive(Clone, Copy, Debug)]
+pub struct SlabGrid {
+    pub size: DVec2,
+    pub cells: (u32, u32),
+    pub origin: DVec3,
+    /// z of the top plane.
+    pub top: f64,
+    /// Number of vertex planes.
+    pub planes: usize,
+}
+
+impl SlabGrid {
+    pub(super) fn plane_len(&self) -> usize {
+        (self.cells.0 as usize + 1) * (self.cells.1 as usize + 1)
+    }
+    pub(super) fn top_offset(&self) -> usize {
+        (self.planes - 1) * self.plane_len()
+    }
+}
+
+/// A blend-shape target: displacements of the layer's vertices (m) and weight keyframes.
+pub type BuiltTarget = (Vec<DVec3>, Vec<(u32, f64)>);
+
+/// Drivers with layer names resolved to indices and values in SI units.
+#[derive(Clone, Debug)]
+pub enum BuiltDriver {
+    Pin {
+        layer: usize,
+        vertices: Vec<u32>,
+        dofs: [bool; 3],
+    },
+    Compress {
+        layers: Vec<usize>,
+        axis: usize,
+        keyframes: Vec<(u32, f64)>,
+        predict: bool,
+    },
+    Bend {
+        layers: Vec<usize>,
+        axis: usize,
+        keyframes: Vec<(u32, f64)>,
+    },
+    /// Springs (vertex of `layer`, vertex of `to`, stiffness N/m).
+    Attach {
+        layer: usize,
+        to: usize,
+        springs: Vec<(u32, u32, f64)>,
+    },
+    /// Per layer: (vertex, master vertex) pairs whose in-plane coordinates are shared.
+    PlaneStrain {
+        layers: Vec<usize>,
+        axis: usize,
+        ties: Vec<Vec<(u32, u32)>>,
+    },
+    /// Per layer: (max-side vertex, min-side vertex) pairs sharing the non-axis coordinates,
+    /// and for shells the hinges across the seam.
+    Periodic {
+        layers: Vec<usize>,
+        axis: usize,
+        ties: Vec<Vec<(u32, u32)>>,
+        seams: Vec<Vec<SeamHinge>>,
+    },
+    /// Per target: displacements of the layer's vertices (m) and weight keyframes.
+    BlendShape {
+        layer: usize,
+        targets: Vec<BuiltTarget>,
+        interpolation: crate::model::Interpolation,
+    },
+    /// Per frame from `start`: displacements of the layer's vertices from rest (m).
+    Sequence {
+        layer: usize,
+        frames: Vec<Vec<DVec3>>,
+        start: u32,
+    },
+    Capture {
+        layers: Vec<usize>,
+        frame: u32,
+        fraction: f64,
+        /// Per listed layer: the painted fraction over its rectangle.
+        maps: Vec<Option<WeightMap>>,
+    },
+}

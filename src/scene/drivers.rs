@@ -1,0 +1,244 @@
+//! Building a patch's drivers: layer names resolved to indices, values checked and converted to
+//! SI, and the geometry each needs (selected vertices, ties, seams, attachment pairs, targets).
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::build::Builder;
+use super::built::{BuiltDriver, BuiltLayer, LayerMesh};
+use super::schema::*;
+use super::SceneError;
+use crate::mesh::{self, select::Region};
+use crate::model::LayerKind;
+use crate::physics::BendingElement;
+
+/// What a patch's drivers are built against: its layers (by name too), units and offset.
+pub(super) struct PatchContext<'a> {
+    pub scene: &'a Scene,
+    pub layers: &'a [BuiltLayer],
+    pub index: &'a HashMap<String, usize>,
+    /// Metres and pascals per scene unit.
+    pub len: f64,
+    pub stress: f64,
+    /// Where the patch sits (m).
+    pub offset: DVec3,
+}
+
+impl Builder {
+    /// One driver, `dat` its field path.
+    pub(super) fn driver(&self, dat: &str, d: &DriverSpec, cx: &PatchContext) -> Result<BuiltDriver, SceneError> {
+        let PatchContext { scene, layers, index, len, stress, offset } = *cx;
+        let find = |field: String, name: &str| -> Result<usize, SceneError> {
+            index.get(name).copied().ok_or_else(|| self.err(field, format!("no layer named \"{name}\" in this patch")))
+        };
+        let keyframes_ok = |k: &Vec<(u32, f64)>, what: &str| -> Result<(), SceneError> {
+            if k.is_empty() {
+                return Err(self.err(format!("{dat}.keyframes"), "needs at least one keyframe"));
+            }
+            for (i, w) in k.windows(2).enumerate() {
+                if w[1].0 <= w[0].0 {
+                    return Err(self.err(
+                        format!("{dat}.keyframes[{}]", i + 1),
+                        format!("keyframes out of order: frame {} comes after frame {}", w[1].0, w[0].0),
+                    ));
+                }
+            }
+            if let Some((i, _)) = k.iter().enumerate().find(|(_, kv)| !kv.1.is_finite()) {
+                return Err(self.err(format!("{dat}.keyframes[{i}]"), format!("{what} must be finite")));
+            }
+            Ok(())
+        };
+        Ok(match d {
+            DriverSpec::Pin { layer, select, dofs } => {
+                let li = find(format!("{dat}.layer"), layer)?;
+                let vertices = mesh::select::select(layers[li].mesh.rest(), &region(select, len, offset));
+                if vertices.is_empty() {
+                    return Err(self.err(format!("{dat}.select"), "selects no vertex"));
+                }
+                BuiltDriver::Pin { layer: li, vertices, dofs: [dofs.x, dofs.y, dofs.z] }
+            }
+            DriverSpec::Compress { layers: ls, axis, keyframes, predict } => {
+                keyframes_ok(keyframes, "strain")?;
+                if let Some((i, _)) = keyframes.iter().enumerate().find(|(_, k)| k.1 >= 1.0) {
+                    return Err(
+                        self.err(format!("{dat}.keyframes[{i}]"), "a strain of 1 or more collapses the patch")
+                    );
+                }
+                let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                BuiltDriver::Compress {
+                    layers,
+                    axis: axis.index(),
+                    keyframes: keyframes.clone(),
+                    predict: *predict,
+                }
+            }
+            DriverSpec::Bend { layers: ls, axis, keyframes } => {
+                keyframes_ok(keyframes, "curvature")?;
+                if *axis == Axis::Z {
+                    return Err(self.err(format!("{dat}.axis"), "the cylinder axis must lie in the plane (X or Y)"));
+                }
+                let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                let keyframes = keyframes.iter().map(|&(f, k)| (f, k / len)).collect();
+                BuiltDriver::Bend { layers, axis: axis.index(), keyframes }
+            }
+            DriverSpec::PlaneStrain { layers: ls, axis } => {
+                let layers_i: Vec<usize> =
+                    ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                let ties =
+                    layers_i.iter().map(|&li| mesh::select::plane_strain_ties(layers[li].mesh.rest(), axis.index())).collect();
+                BuiltDriver::PlaneStrain { layers: layers_i, axis: axis.index(), ties }
+            }
+            DriverSpec::Periodic { layers: ls, axis } => {
+                let layers_i: Vec<usize> =
+                    ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                let ties: Vec<Vec<(u32, u32)>> =
+                    layers_i.iter().map(|&li| mesh::select::periodic_ties(layers[li].mesh.rest(), axis.index())).collect();
+                if ties.iter().all(|t| t.is_empty()) {
+                    return Err(
+                        self.err(format!("{dat}.layers"), "no vertex on the max side matches one on the min side")
+                    );
+                }
+                if let Some(&li) = layers_i.iter().find(|&&li| quadratic(&layers[li])) {
+                    return Err(self.err(
+                        format!("{dat}.layers"),
+                        format!("\"{}\" bends with the quadratic element, which does not cross a periodic seam (use element: Hinge)", layers[li].name),
+                    ));
+                }
+                let seams = layers_i
+                    .iter()
+                    .map(|&li| match (&layers[li].mesh, layers[li].kind) {
+                        (LayerMesh::Surface(m), LayerKind::Shell) => mesh::select::periodic_seams(m, axis.index()),
+                        _ => Vec::new(),
+                    })
+                    .collect();
+                BuiltDriver::Periodic { layers: layers_i, axis: axis.index(), ties, seams }
+            }
+            DriverSpec::Capture { layers: ls, frame, fraction, map } => {
+                if !(*fraction >= 0.0 && *fraction <= 1.0) {
+                    return Err(self.err(format!("{dat}.fraction"), format!("must be in [0, 1] (got {fraction})")));
+                }
+                if *frame == 0 || *frame > scene.frames {
+                    return Err(self.err(
+                        format!("{dat}.frame"),
+                        format!("must be a computed frame, 1 to {} (got {frame})", scene.frames),
+                    ));
+                }
+                let layers_i: Vec<usize> =
+                    ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                if let Some(&li) = layers_i.iter().find(|&&li| layers[li].kind == LayerKind::Kinematic) {
+                    return Err(self.err(
+                        format!("{dat}.layers"),
+                        format!("\"{}\" is kinematic: it has no rest state to capture", layers[li].name),
+                    ));
+                }
+                if let Some(&li) = layers_i.iter().find(|&&li| quadratic(&layers[li])) {
+                    return Err(self.err(
+                        format!("{dat}.layers"),
+                        format!("\"{}\" bends with the quadratic element, which has no rest curvature to capture into", layers[li].name),
+                    ));
+                }
+                if let Some(&li) = layers_i.iter().find(|&&li| layers[li].remesh.is_some()) {
+                    return Err(self.err(
+                        format!("{dat}.layers"),
+                        format!(
+                            "\"{}\" is remeshed: a captured rest state is per element and is not carried \
+                             across a remesh",
+                            layers[li].name
+                        ),
+                    ));
+                }
+                let maps = layers_i
+                    .iter()
+                    .map(|&li| map.as_ref().map(|m| self.weight_map(&format!("{dat}.map"), m, &layers[li].mesh)))
+                    .map(Option::transpose)
+                    .collect::<Result<_, _>>()?;
+                BuiltDriver::Capture { layers: layers_i, frame: *frame, fraction: *fraction, maps }
+            }
+            DriverSpec::BlendShape { layer, targets, interpolation, range } => {
+                let li = find(format!("{dat}.layer"), layer)?;
+                let targets = self.blend_targets(dat, targets, *range, &layers[li].mesh, len, offset)?;
+                BuiltDriver::BlendShape { layer: li, targets, interpolation: *interpolation }
+            }
+            DriverSpec::Articulate { layer, pose, weights, interpolation } => {
+                let li = find(format!("{dat}.layer"), layer)?;
+                let frames =
+                    self.articulate(dat, pose, weights, *interpolation, &layers[li], len, scene.frames)?;
+                BuiltDriver::Sequence { layer: li, frames, start: 0 }
+            }
+            DriverSpec::ObjSequence { layer, files, start } => {
+                let li = find(format!("{dat}.layer"), layer)?;
+                let frames = self.obj_sequence(dat, files, &layers[li], len, offset)?;
+                BuiltDriver::Sequence { layer: li, frames, start: *start }
+            }
+            DriverSpec::Attach { layer, to, stiffness } => {
+                let a = find(format!("{dat}.layer"), layer)?;
+                let b = find(format!("{dat}.to"), to)?;
+                if !(*stiffness > 0.0 && stiffness.is_finite()) {
+                    return Err(self.err(format!("{dat}.stiffness"), format!("must be > 0 (got {stiffness})")));
+                }
+                let springs = self.attach_springs(dat, &layers[a], &layers[b], stiffness * stress / len)?;
+                BuiltDriver::Attach { layer: a, to: b, springs }
+            }
+        })
+    }
+
+    /// Pairs every vertex of `a` with the vertex of `b` at the same rest position in the plane
+    /// (x, y), for attachment springs; stiffness per vertex = k_area x vertex area of `a`.
+    fn attach_springs(
+        &self,
+        at: &str,
+        a: &BuiltLayer,
+        b: &BuiltLayer,
+        k_area: f64,
+    ) -> Result<Vec<(u32, u32, f64)>, SceneError> {
+        // The attached vertices and their faces: a surface's own, or a solid's bottom faces.
+        let ra = a.mesh.rest();
+        let (faces, attached): (Vec<[u32; 3]>, Vec<bool>) = match &a.mesh {
+            LayerMesh::Surface(m) => (m.faces.clone(), vec![true; ra.len()]),
+            LayerMesh::Volume(m) => mesh::select::bottom_faces(ra, &m.tets),
+        };
+        let below = mesh::select::match_xy(ra, b.mesh.rest());
+        let area = mesh::select::vertex_areas(ra, &faces);
+        let mut out = Vec::with_capacity(ra.len());
+        for i in (0..ra.len()).filter(|&i| attached[i]) {
+            let j = below[i].ok_or_else(|| {
+                self.err(
+                    format!("{at}.to"),
+                    format!("vertex {i} of \"{}\" has no vertex of \"{}\" at the same (x, y)", a.name, b.name),
+                )
+            })?;
+            out.push((i as u32, j, k_area * area[i]));
+        }
+        Ok(out)
+    }
+}
+
+/// A selection in SI, about the placed patch.
+fn region(select: &Select, len: f64, offset: DVec3) -> Region {
+    match select {
+        Select::All => Region::All,
+        Select::Sides(sides) => Region::Sides(
+            sides
+                .iter()
+                .map(|s| match s {
+                    Side::XMin => (0, false),
+                    Side::XMax => (0, true),
+                    Side::YMin => (1, false),
+                    Side::YMax => (1, true),
+                    Side::ZMin => (2, false),
+                    Side::ZMax => (2, true),
+                })
+                .collect(),
+        ),
+        Select::Box { min, max } => Region::Box {
+            min: DVec3::new(min.0, min.1, min.2) * len + offset,
+            max: DVec3::new(max.0, max.1, max.2) * len + offset,
+        },
+    }
+}
+
+/// Whether a layer bends with the quadratic element (flat rest only).
+fn quadratic(layer: &BuiltLayer) -> bool {
+    layer.bending.is_some_and(|b| b.element == BendingElement::Quadratic)
+}

@@ -1,0 +1,280 @@
+//! A patch's layers: kind, mesh, material, bending, prestrain, randomized moduli, property maps
+//! and remeshing.
+
+use serde::{Deserialize, Serialize};
+
+use super::{default_one, Axis};
+use crate::mesh::GridPattern;
+use crate::model::LayerKind;
+use crate::physics::{ConstitutiveModel, HingeModel};
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Layer")]
+pub struct LayerSpec {
+    pub name: String,
+    pub kind: LayerKind,
+    pub mesh: MeshSpec,
+    /// Required for shell and volume layers.
+    #[serde(default)]
+    pub material: Option<MaterialSpec>,
+    /// Shell layers only; no hinges without it.
+    #[serde(default)]
+    pub bending: Option<BendingSpec>,
+    /// A stored prestrain (H15 4.3): F0 per element, and for shells a rest curvature.
+    #[serde(default)]
+    pub prestrain: Option<PrestrainSpec>,
+    /// Per-element Young's modulus E (1 + amplitude u), u seeded-uniform in [-1, 1]: breaks the
+    /// symmetry of uniform compression (H15 6.2, fig. 6.7b).
+    #[serde(default)]
+    pub randomize: Option<RandomizeSpec>,
+    /// A property map over the layer's material rectangle (LK14 5.2); shells only.
+    #[serde(default)]
+    pub properties: Option<PropertiesSpec>,
+    /// Adaptive remeshing in material space (REMESH.md); shells only.
+    #[serde(default)]
+    pub remesh: Option<RemeshSpec>,
+}
+
+/// Remeshing thresholds (REMESH.md), lengths in the scene's length unit.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Remesh")]
+pub struct RemeshSpec {
+    /// Smallest and largest edge length.
+    pub size_min: f64,
+    pub size_max: f64,
+    /// Smallest ratio of the two sizes of an anisotropic metric, in (0, 1].
+    #[serde(default = "default_aspect_min")]
+    pub aspect_min: f64,
+    /// Largest turn of the normal across an edge (radians).
+    #[serde(default = "default_refine_angle")]
+    pub refine_angle: f64,
+    /// Largest unresolved buckle amplitude (a length).
+    pub refine_compression: f64,
+    /// Velocity-gradient term (length per second), for the implicit-Euler mode.
+    #[serde(default)]
+    pub refine_velocity: Option<f64>,
+    /// Remesh after the first solved frame, then every this many frames (the first frame runs on
+    /// the mesh given).
+    #[serde(default = "default_every")]
+    pub every: u32,
+    /// Split midpoints on the curved surface (default); false puts them on the straight edge
+    /// (only to measure the energy jump the curved placement avoids).
+    #[serde(default = "default_curved_splits")]
+    pub curved_splits: bool,
+    /// Relax the vertices of every changed face on the layer's own energy before the frame's
+    /// solve (default); false leaves them where the operations put them (only to measure the
+    /// jump settling avoids).
+    #[serde(default = "default_settle")]
+    pub settle: bool,
+}
+
+fn default_settle() -> bool {
+    true
+}
+
+fn default_curved_splits() -> bool {
+    true
+}
+
+fn default_aspect_min() -> f64 {
+    0.2
+}
+
+fn default_refine_angle() -> f64 {
+    0.3
+}
+
+fn default_every() -> u32 {
+    1
+}
+
+/// An RGB property map and how each channel (0 to 1) scales the layer's reference values:
+/// factor = lo + (hi - lo) x channel. Red: the critical wavelength of couplings whose upper
+/// layer this is; green: Young's modulus; blue: thickness. A channel without a mapping is
+/// ignored. Sampled bilinearly: faces at their centroid, hinges at their edge midpoint, kernels
+/// at their centre.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Properties")]
+pub struct PropertiesSpec {
+    pub map: MapSource,
+    #[serde(default)]
+    pub wavelength: Option<(f64, f64)>,
+    #[serde(default)]
+    pub young: Option<(f64, f64)>,
+    #[serde(default)]
+    pub thickness: Option<(f64, f64)>,
+}
+
+/// Where a property map's colours come from. Colours are (r, g, b) in [0, 1].
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum MapSource {
+    /// An RGB (or RGBA) PNG, path relative to the scene, stretched over the layer's rectangle.
+    Png(String),
+    Constant((f64, f64, f64)),
+    /// Linear from `from` at the min side to `to` at the max side along `axis`.
+    Ramp {
+        axis: Axis,
+        from: (f64, f64, f64),
+        to: (f64, f64, f64),
+    },
+    /// `inner` at the centre to `outer` at half the smaller side and beyond.
+    Radial {
+        inner: (f64, f64, f64),
+        outer: (f64, f64, f64),
+    },
+    /// Seeded value noise: a random colour between `low` and `high` (per channel, one shared
+    /// random number) at the nodes of a `cells` x `cells` lattice, smoothly interpolated.
+    Noise {
+        seed: u64,
+        cells: u32,
+        low: (f64, f64, f64),
+        high: (f64, f64, f64),
+    },
+}
+
+/// Prestrain of a layer (H15 4.3, eq. 4.8: F = dx/dX F0).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Prestrain")]
+pub struct PrestrainSpec {
+    /// Principal stretches of F0 along the material x, y, z axes (1.02: stretched 2 % at rest,
+    /// H15 table 6.1). Shells use the in-plane part.
+    #[serde(default = "unit_stretch")]
+    pub stretch: (f64, f64, f64),
+    /// A greyscale PNG over the layer's rectangle (path relative to the scene; white = 1):
+    /// F0 = I + w (S - I) with w the map at the element's centre.
+    #[serde(default)]
+    pub map: Option<String>,
+    /// Shells: rest curvature (1 / length unit) that replaces the flat rest bend of every hinge,
+    /// curving along `curvature_along` (the shape of a cylinder across that axis).
+    #[serde(default)]
+    pub curvature: f64,
+    #[serde(default)]
+    pub curvature_along: Axis,
+}
+
+fn unit_stretch() -> (f64, f64, f64) {
+    (1.0, 1.0, 1.0)
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Randomize")]
+pub struct RandomizeSpec {
+    /// Relative amplitude, in [0, 1): E stays positive.
+    pub amplitude: f64,
+    pub seed: u64,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum MeshSpec {
+    /// Rectangle [0, size.0] x [0, size.1] at height z, `cells` cells.
+    Grid {
+        size: (f64, f64),
+        cells: (u32, u32),
+        #[serde(default)]
+        pattern: GridPattern,
+        #[serde(default)]
+        z: f64,
+    },
+    /// A tetrahedral slab over the same rectangle, from z = top - depth up to z = top,
+    /// `elements` tetrahedral prisms through the depth (three tets each).
+    TetSlab {
+        size: (f64, f64),
+        cells: (u32, u32),
+        depth: f64,
+        elements: u32,
+        #[serde(default)]
+        top: f64,
+        /// Bottom element thickness over top element thickness (1: uniform; > 1 refines towards
+        /// the surface, where wrinkle displacements are largest).
+        #[serde(default = "default_one")]
+        grading: f64,
+    },
+    /// A triangle surface from an OBJ file (path relative to the scene file), in length units.
+    Obj { path: String },
+    /// A tetrahedral slab stacked on the top of an earlier volume layer (TetSlab or TetOn),
+    /// sharing its top vertices: `depth` thick with `elements` prisms through it (H15 4.1).
+    TetOn {
+        layer: String,
+        depth: f64,
+        elements: u32,
+        #[serde(default = "default_one")]
+        grading: f64,
+    },
+    /// The top surface of an earlier volume layer: a shell (or kinematic) layer whose vertices
+    /// are that layer's top vertices (H15: the stratum corneum over the dermis).
+    SurfaceOf { layer: String },
+    /// An open tube along x centred on the origin: `cells` = (around, along).
+    Tube { radius: f64, length: f64, cells: (u32, u32) },
+    /// A closed lumpy creature (torso, four legs, head, tail) of 20 x 4^subdivisions triangles.
+    Creature { radius: f64, subdivisions: u32 },
+    /// An earlier surface layer's rest mesh moved `distance` along its vertex normals (a skin
+    /// over a body; its own vertices).
+    Offset { layer: String, distance: f64 },
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Material")]
+pub struct MaterialSpec {
+    /// Default: Bazant-Hencky; Stable Neo-Hookean for the skin layer of KCK18 anchors.
+    #[serde(default)]
+    pub model: Option<ConstitutiveModel>,
+    /// A shipped reference material: supplies young, poisson and thickness wherever they are
+    /// not stated.
+    #[serde(default)]
+    pub preset: Option<MaterialPreset>,
+    /// Young's modulus (stress units).
+    #[serde(default)]
+    pub young: Option<f64>,
+    #[serde(default)]
+    pub poisson: Option<f64>,
+    /// kg/m^3.
+    #[serde(default = "default_density")]
+    pub density: f64,
+    /// Shell thickness (length units); shells only.
+    #[serde(default)]
+    pub thickness: Option<f64>,
+}
+
+/// Reference materials (LK14 5.2): the two-layer skin model and the soft substructure under
+/// its blend shape. LK14 states E and h; the Poisson ratio 0.45 (nearly incompressible soft
+/// tissue) is ours.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+pub enum MaterialPreset {
+    /// E = 4 MPa, h = 1.3 mm.
+    Lk14Dermis,
+    /// E = 600 MPa, h = 0.12 mm.
+    Lk14Epidermis,
+    /// E = 0.5 MPa, h = 15 mm (the Eq31 stand-in for a kinematic base).
+    Lk14Substructure,
+}
+
+impl MaterialPreset {
+    /// (Young's modulus in Pa, Poisson ratio, thickness in m).
+    pub fn si(self) -> (f64, f64, f64) {
+        match self {
+            MaterialPreset::Lk14Dermis => (4e6, 0.45, 1.3e-3),
+            MaterialPreset::Lk14Epidermis => (600e6, 0.45, 0.12e-3),
+            MaterialPreset::Lk14Substructure => (0.5e6, 0.45, 15e-3),
+        }
+    }
+}
+
+fn default_density() -> f64 {
+    1000.0
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Bending")]
+pub struct BendingSpec {
+    #[serde(default)]
+    pub model: HingeModel,
+    /// `Hinge` (default) or `Quadratic`: the squared cotangent Laplacian, accurate on irregular
+    /// and anisotropic (remeshed) meshes, for layers with a flat rest state.
+    #[serde(default)]
+    pub element: crate::physics::BendingElement,
+    /// Multiplies the calibrated hinge stiffness k_b = D / 6 (PHYSICS.md 1.2).
+    #[serde(default = "default_one")]
+    pub scale: f64,
+}

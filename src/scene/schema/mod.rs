@@ -1,0 +1,232 @@
+//! The scene schema. Every struct denies unknown fields so that a typo is an error.
+//! Lengths and stresses are in the scene's `units`; densities in kg/m^3; times in seconds.
+//! See scenes/README.md and the commented scenes for examples of every feature. The parts of a
+//! patch are in `layer` (layers and their meshes, materials and maps), `driver` (drivers and
+//! selections) and `coupling` (LK14 kernels, KCK18 anchors).
+
+use serde::{Deserialize, Serialize};
+
+use crate::physics::Projection;
+use crate::solve::{KktMethod, LinearSolver, SolveMode, SolverSettings};
+
+mod coupling;
+mod driver;
+mod layer;
+
+pub use coupling::*;
+pub use driver::*;
+pub use layer::*;
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub name: String,
+    #[serde(default)]
+    pub units: Units,
+    /// Number of frames to compute.
+    pub frames: u32,
+    /// Seconds per frame (the time step of the implicit-Euler mode).
+    #[serde(default = "default_frame_time")]
+    pub frame_time: f64,
+    pub patches: Vec<PatchSpec>,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+fn default_frame_time() -> f64 {
+    1.0 / 30.0
+}
+fn default_true() -> bool {
+    true
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Units {
+    #[serde(default)]
+    pub length: LengthUnit,
+    #[serde(default)]
+    pub stress: StressUnit,
+}
+
+impl Default for Units {
+    fn default() -> Self {
+        Units { length: LengthUnit::Millimetre, stress: StressUnit::MegaPascal }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum LengthUnit {
+    Metre,
+    Centimetre,
+    #[default]
+    Millimetre,
+    Micrometre,
+}
+
+impl LengthUnit {
+    pub fn to_si(self) -> f64 {
+        match self {
+            LengthUnit::Metre => 1.0,
+            LengthUnit::Centimetre => 1e-2,
+            LengthUnit::Millimetre => 1e-3,
+            LengthUnit::Micrometre => 1e-6,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum StressUnit {
+    Pascal,
+    KiloPascal,
+    #[default]
+    MegaPascal,
+    GigaPascal,
+}
+
+impl StressUnit {
+    pub fn to_si(self) -> f64 {
+        match self {
+            StressUnit::Pascal => 1.0,
+            StressUnit::KiloPascal => 1e3,
+            StressUnit::MegaPascal => 1e6,
+            StressUnit::GigaPascal => 1e9,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Patch")]
+pub struct PatchSpec {
+    pub name: String,
+    /// Where the patch sits in the world (length units).
+    #[serde(default)]
+    pub offset: (f64, f64, f64),
+    #[serde(default)]
+    pub solver: SolverSpec,
+    pub layers: Vec<LayerSpec>,
+    #[serde(default)]
+    pub drivers: Vec<DriverSpec>,
+    /// LK14 constraint kernels between pairs of layers (chapter 4).
+    #[serde(default)]
+    pub couplings: Vec<CouplingSpec>,
+    /// KCK18 anchors holding a skin layer to a kinematic body.
+    #[serde(default)]
+    pub anchors: Option<AnchorSpec>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Solver")]
+pub struct SolverSpec {
+    #[serde(default)]
+    pub mode: SolveMode,
+    /// Converged when |grad| <= tolerance x (internal force scale).
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    #[serde(default = "default_max_iterations")]
+    pub max_iterations: u32,
+    #[serde(default)]
+    pub projection: Projection,
+    /// A seeded random normal displacement of free shell vertices before the first frame.
+    #[serde(default)]
+    pub perturbation: Option<Perturbation>,
+    /// Quasistatic mode: at convergence, test the exact Hessian; at an unstable equilibrium
+    /// (a saddle: the flat state past the buckling load) leave it along negative curvature.
+    #[serde(default = "default_true")]
+    pub stability_check: bool,
+    /// How Newton solves H dx = -g.
+    #[serde(default)]
+    pub linear: LinearSolver,
+    /// How the constrained (KKT) system of a patch with kernels is solved (LK14 eq. 5.1).
+    #[serde(default)]
+    pub kkt: KktMethod,
+}
+
+fn default_tolerance() -> f64 {
+    SolverSettings::default().tolerance
+}
+fn default_max_iterations() -> u32 {
+    SolverSettings::default().max_iterations
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        let s = SolverSettings::default();
+        SolverSpec {
+            mode: s.mode,
+            tolerance: s.tolerance,
+            max_iterations: s.max_iterations,
+            projection: s.projection,
+            perturbation: None,
+            stability_check: s.stability_check,
+            linear: s.linear,
+            kkt: s.kkt,
+        }
+    }
+}
+
+impl SolverSpec {
+    /// The solver's settings (the perturbation is the scene's: spawn applies it).
+    pub fn settings(&self) -> SolverSettings {
+        SolverSettings {
+            mode: self.mode,
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations,
+            projection: self.projection,
+            stability_check: self.stability_check,
+            linear: self.linear,
+            kkt: self.kkt,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Perturbation {
+    /// Largest displacement (length units), uniform in [-amplitude, amplitude].
+    pub amplitude: f64,
+    pub seed: u64,
+    /// With a length: a smooth field instead of independent vertex values, amplitude x Perlin
+    /// noise of this cell size over material space. Every mesh of the patch then gets the same
+    /// imperfection, so refining (or remeshing) does not redraw the wrinkle mode it seeds.
+    #[serde(default)]
+    pub cell: Option<f64>,
+}
+
+fn default_one() -> f64 {
+    1.0
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum Axis {
+    #[default]
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields, rename = "Output")]
+pub struct OutputSpec {
+    /// stats.jsonl
+    #[serde(default = "default_true")]
+    pub stats: bool,
+    /// recording.rrd
+    #[serde(default = "default_true")]
+    pub rerun: bool,
+    /// obj/<patch>/<layer>/<frame>.obj
+    #[serde(default)]
+    pub obj: bool,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec { stats: true, rerun: true, obj: false }
+    }
+}

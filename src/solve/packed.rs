@@ -1,0 +1,132 @@
+//! One patch packed for the solver: its state and elements indexed by packed vertex number, and
+//! the solver's caches. No entity handles: the map to the ECS is the patch's
+//! `model::PackedIndex`. Assemble rebuilds it when the topology changes and gathers the state
+//! every frame; Writeback scatters the state back.
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+use super::constraints::Constraints;
+use super::elements::{Elements, HingeElem, MembraneElem};
+use super::kkt::KktSystem;
+use super::linear::CholeskySolver;
+use super::pattern::Pattern;
+use crate::physics::hinge::HingeRest;
+use crate::physics::membrane::MembraneRest;
+use crate::physics::{ConstitutiveModel, HingeModel, Lame};
+
+/// A patch's packed problem (a component on the patch entity).
+#[derive(Component, Default)]
+pub struct PackedPatch {
+    pub state: PackedState,
+    pub elements: Elements,
+    /// LK14 kernel constraints (empty without kernels).
+    pub constraints: Constraints,
+    /// Characteristic length (bounding-box diagonal of the positions at the rebuild), m.
+    pub length_scale: f64,
+    pub cache: SolverCache,
+}
+
+/// Per packed vertex: what Newton iterates on.
+#[derive(Clone, Debug, Default)]
+pub struct PackedState {
+    pub x: Vec<DVec3>,
+    pub v: Vec<DVec3>,
+    pub mass: Vec<f64>,
+    pub fixed: Vec<[bool; 3]>,
+    /// The vertex whose coordinates this one shares (itself when none) and which ones.
+    pub tie: Vec<(u32, [bool; 3])>,
+}
+
+impl PackedState {
+    /// An unmoving, unfixed, untied state at the positions `x`.
+    pub fn at_rest(x: Vec<DVec3>) -> Self {
+        let n = x.len();
+        PackedState {
+            x,
+            v: vec![DVec3::ZERO; n],
+            mass: vec![0.0; n],
+            fixed: vec![[false; 3]; n],
+            tie: (0..n as u32).map(|i| (i, [false; 3])).collect(),
+        }
+    }
+
+    /// Copies every tied coordinate from its master, so shared DOFs start equal.
+    pub fn sync_ties(&mut self) {
+        for v in 0..self.x.len() {
+            let (m, dofs) = self.tie[v];
+            if m as usize != v {
+                for (k, _) in dofs.iter().enumerate().filter(|(_, tied)| **tied) {
+                    self.x[v][k] = self.x[m as usize][k];
+                    self.v[v][k] = self.v[m as usize][k];
+                }
+            }
+        }
+    }
+}
+
+/// What the solver keeps between frames: the sparse pattern with its symbolic and numeric
+/// Cholesky factor, and the KKT system of a patch with kernels. Built lazily by the first solve,
+/// dropped when the topology, the fixed coordinates or the kernels change.
+#[derive(Default)]
+pub struct SolverCache {
+    pub system: Option<(Pattern, CholeskySolver)>,
+    pub kkt: Option<KktSystem>,
+}
+
+impl SolverCache {
+    pub fn invalidate(&mut self) {
+        self.system = None;
+        self.kkt = None;
+    }
+}
+
+impl PackedPatch {
+    /// Tetrahedra whose current volume is not positive.
+    pub fn inverted_tets(&self) -> usize {
+        let x = &self.state.x;
+        self.elements
+            .tets
+            .iter()
+            .filter(|t| {
+                let p = t.v.map(|i| x[i as usize]);
+                (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]) <= 0.0
+            })
+            .count()
+    }
+
+    /// One shell layer packed straight from a mesh, without a World (benchmarks and bare-pipeline
+    /// tests). `fixed` chooses the held coordinates from the rest position.
+    pub fn from_shell(
+        mesh: &crate::mesh::SurfaceMesh,
+        model: ConstitutiveModel,
+        lame: Lame,
+        thickness: f64,
+        bending: Option<(HingeModel, f64)>,
+        fixed: impl Fn(DVec3) -> [bool; 3],
+    ) -> PackedPatch {
+        let mut el = Elements::default();
+        for f in &mesh.faces {
+            let rest =
+                MembraneRest::from_rest_triangle(f.map(|i| mesh.rest[i as usize]), thickness, glam::DMat2::IDENTITY)
+                    .expect("valid triangle");
+            el.membranes.push(MembraneElem { v: *f, rest, model, lame });
+        }
+        if let Some((hinge_model, k_b)) = bending {
+            for e in crate::mesh::edges(&mesh.faces).into_iter().filter(|e| e.is_interior()) {
+                let v = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]];
+                let rest = HingeRest::from_rest(hinge_model, k_b, v.map(|i| mesh.rest[i as usize]));
+                el.hinges.push(HingeElem { v, rest, model: hinge_model, image: None });
+            }
+        }
+        let mut state = PackedState::at_rest(mesh.rest.clone());
+        state.fixed = mesh.rest.iter().map(|p| fixed(*p)).collect();
+        PackedPatch {
+            state,
+            length_scale: crate::mesh::bounds::diagonal(&mesh.rest),
+            elements: el,
+            constraints: Constraints::default(),
+            cache: SolverCache::default(),
+        }
+    }
+}

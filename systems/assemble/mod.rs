@@ -1,0 +1,109 @@
+//! Assemble (ARCHITECTURE.md 2): packs each patch out of the ECS into its `PackedPatch`. When a
+//! layer's topology changes (its epoch or an element count) the packed index, the element
+//! lists and the anchor springs are rebuilt (`rebuild`, `anchor_springs`); when the kernels
+//! were resampled, the constraint rows (`kernel_rows`). Every frame the positions, velocities,
+//! fixed coordinates and anchor targets are gathered.
+
+mod anchor_springs;
+mod kernel_rows;
+mod rebuild;
+
+use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
+use bevy_ecs::system::SystemParam;
+use skinsim::model::*;
+use skinsim::solve::PackedPatch;
+
+/// What Assemble reads of a layer.
+#[derive(QueryData)]
+pub struct LayerItems {
+    pub layer: &'static Layer,
+    pub epoch: &'static TopologyEpoch,
+    pub material: Option<&'static Material>,
+    pub bending: Option<&'static Bending>,
+    pub vertices: Option<&'static LayerVertices>,
+    pub faces: Option<&'static LayerFaces>,
+    pub edges: Option<&'static LayerEdges>,
+    pub tets: Option<&'static LayerTets>,
+    pub springs: Option<&'static LayerSprings>,
+    pub anchors: Option<&'static LayerAnchors>,
+    /// A body under KCK18 anchors is not solved for: the walk reads it, the springs hold targets.
+    pub anchor_body: Has<AnchorBody>,
+}
+
+/// The element entities Assemble packs.
+#[derive(SystemParam)]
+pub struct ElementItems<'w, 's> {
+    pub vertices: Query<'w, 's, (&'static Position, &'static Velocity, &'static Mass, &'static Prescribed)>,
+    pub ties: Query<'w, 's, &'static Tied>,
+    pub rest: Query<'w, 's, &'static RestPos>,
+    pub faces: Query<'w, 's, (&'static FaceVerts, Option<&'static FaceRest>, Option<&'static ModulusScale>)>,
+    pub hinges: Query<'w, 's, (&'static EdgeVerts, &'static Hinge)>,
+    pub tets: Query<'w, 's, (&'static TetVerts, &'static TetRestShape, Option<&'static ModulusScale>)>,
+    pub springs: Query<'w, 's, &'static Spring>,
+    pub anchors: Query<'w, 's, (&'static Anchor, &'static AnchorState)>,
+    pub kernels: Query<'w, 's, (&'static Kernel, Ref<'static, KernelWeights>)>,
+    pub thickness: Query<'w, 's, (&'static Thickness, Option<&'static LayerProperties>)>,
+}
+
+pub fn gather_packed(
+    mut patches: Query<(&PatchLayers, Option<&PatchKernels>, &mut PackedPatch, &mut PackedIndex)>,
+    layers: Query<LayerItems>,
+    items: ElementItems,
+) {
+    for (patch_layers, patch_kernels, mut packed, mut index) in &mut patches {
+        let (packed, index) = (packed.as_mut(), index.as_mut());
+        let key = topology_key(patch_layers, &layers);
+        let rebuilt = key != index.key;
+        if rebuilt {
+            rebuild::rebuild(packed, index, patch_layers, &layers, &items);
+            anchor_springs::rebuild(packed, index, patch_layers, &layers, &items.anchors);
+            index.key = key;
+        }
+        if let Some(pk) = patch_kernels {
+            let resampled = pk.entities().iter().any(|&k| items.kernels.get(k).is_ok_and(|(_, w)| w.is_changed()));
+            if rebuilt || resampled {
+                packed.constraints = kernel_rows::kernel_rows(packed, index, pk, &layers, &items);
+                packed.cache.invalidate(); // the pattern holds the kernels' J^T J couplings
+            }
+        }
+        let mut fixed_changed = false;
+        let state = &mut packed.state;
+        for (i, &e) in index.vertices.iter().enumerate() {
+            let (p, v, _, f) = items.vertices.get(e).expect("vertex of a live layer");
+            state.x[i] = p.0;
+            state.v[i] = v.0;
+            if state.fixed[i] != f.0 {
+                state.fixed[i] = f.0;
+                fixed_changed = true;
+            }
+        }
+        if fixed_changed {
+            packed.cache.invalidate();
+        }
+        anchor_springs::update_targets(packed, index, &items.anchors);
+    }
+}
+
+/// A cheap fingerprint of a patch's topology: epochs and element counts of every layer, in order.
+fn topology_key(patch_layers: &PatchLayers, layers: &Query<LayerItems>) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut mix = |v: u64| {
+        h ^= v;
+        h = h.wrapping_mul(0x100_0000_01b3);
+    };
+    let count = |list: Option<&[Entity]>| list.map_or(0, |x| x.len()) as u64;
+    for &l in patch_layers.entities() {
+        if let Ok(item) = layers.get(l) {
+            mix(l.to_bits());
+            mix(item.epoch.0);
+            mix(count(item.vertices.map(|x| x.entities())));
+            mix(count(item.faces.map(|x| x.entities())));
+            mix(count(item.edges.map(|x| x.entities())));
+            mix(count(item.tets.map(|x| x.entities())));
+            mix(count(item.springs.map(|x| x.entities())));
+            mix(count(item.anchors.map(|x| x.entities())));
+        }
+    }
+    h
+}

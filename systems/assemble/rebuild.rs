@@ -1,0 +1,125 @@
+//! The rebuild: the packed index and element lists of one patch, read from the ECS when a
+//! layer's topology changes.
+
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+use skinsim::model::*;
+use skinsim::physics::{BendingElement, QuadraticBending};
+use skinsim::solve::{Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
+
+use super::{ElementItems, LayerItems, LayerItemsItem};
+
+/// Packs the patch's vertices (each once), their state and ties, and every element of its
+/// layers, and drops the solver's cache.
+pub(super) fn rebuild(
+    packed: &mut PackedPatch,
+    index: &mut PackedIndex,
+    patch_layers: &PatchLayers,
+    layers: &Query<LayerItems>,
+    items: &ElementItems,
+) {
+    index.vertices.clear();
+    index.index.clear();
+    for &l in patch_layers.entities() {
+        let Ok(LayerItemsItem { vertices: Some(verts), anchor_body: false, .. }) = layers.get(l) else { continue };
+        for &v in verts.entities() {
+            if let std::collections::hash_map::Entry::Vacant(slot) = index.index.entry(v) {
+                slot.insert(index.vertices.len() as u32);
+                index.vertices.push(v);
+            }
+        }
+    }
+    let n = index.vertices.len();
+    let state = &mut packed.state;
+    state.x = vec![DVec3::ZERO; n];
+    state.v = vec![DVec3::ZERO; n];
+    state.mass = vec![0.0; n];
+    state.fixed = vec![[false; 3]; n];
+    for (i, &e) in index.vertices.iter().enumerate() {
+        let (p, v, m, f) = items.vertices.get(e).expect("vertex");
+        state.x[i] = p.0;
+        state.v[i] = v.0;
+        state.mass[i] = m.0;
+        state.fixed[i] = f.0;
+    }
+    let idx = |e: &Entity| index.index[e];
+    state.tie = (0..n as u32).map(|i| (i, [false; 3])).collect();
+    for (i, &e) in index.vertices.iter().enumerate() {
+        if let Ok(t) = items.ties.get(e) {
+            if let Some(&m) = index.index.get(&t.master) {
+                if (m as usize) < i {
+                    state.tie[i] = (m, t.dofs);
+                }
+            }
+        }
+    }
+    let mut el = Elements::default();
+    let (mut face_count, mut tet_count) = (0, 0);
+    for &l in patch_layers.entities() {
+        let Ok(layer) = layers.get(l) else { continue };
+        if layer.anchor_body {
+            continue;
+        }
+        let material = layer.material;
+        if let Some(lf) = layer.faces {
+            face_count += lf.entities().len();
+            if let (LayerKind::Shell, Some(m)) = (layer.layer.kind, material) {
+                for &f in lf.entities() {
+                    if let Ok((fv, Some(rest), scale)) = items.faces.get(f) {
+                        el.membranes.push(MembraneElem {
+                            v: fv.0.map(|e| idx(&e)),
+                            rest: rest.0,
+                            model: m.model,
+                            lame: m.lame.scaled(scale.map_or(1.0, |s| s.0)),
+                        });
+                    }
+                }
+            }
+        }
+        if let (Some(le), Some(b)) = (layer.edges, layer.bending) {
+            let layer_hinges = le.entities().iter().filter_map(|&e| items.hinges.get(e).ok()).map(|(ev, h)| {
+                let v = [idx(&ev.0[0]), idx(&ev.0[1]), idx(&h.opposite[0]), idx(&h.opposite[1])];
+                HingeElem { v, rest: h.rest, model: b.model, image: h.image.map(|[a, b]| (idx(&a), idx(&b))) }
+            });
+            if let (BendingElement::Quadratic, Some(lf)) = (b.element, layer.faces) {
+                // Built from the hinges' stiffness (property maps and scale included).
+                let tris: Vec<[u32; 3]> = lf
+                    .entities()
+                    .iter()
+                    .filter_map(|&f| items.faces.get(f).ok())
+                    .map(|f| f.0 .0.map(|e| idx(&e)))
+                    .collect();
+                let stiffness: Vec<([u32; 4], f64)> = layer_hinges.map(|h| (h.v, h.rest.weight)).collect();
+                let rest_at = |i: u32| items.rest.get(index.vertices[i as usize]).expect("vertex").0;
+                let poisson = material.map_or(0.0, |m| m.poisson); // (a shell always has one)
+                let boundary = skinsim::mesh::boundary_vertices(&tris, n);
+                let (q, g) = QuadraticBending::plate(&tris, rest_at, &stiffness, &boundary, poisson);
+                el.quadratic.extend(q);
+                el.gaussian.extend(g);
+            } else {
+                el.hinges.extend(layer_hinges);
+            }
+        }
+        if let (Some(lt), Some(m)) = (layer.tets, material) {
+            tet_count += lt.entities().len();
+            for &t in lt.entities() {
+                if let Ok((tv, rest, scale)) = items.tets.get(t) {
+                    let lame = m.lame.scaled(scale.map_or(1.0, |s| s.0));
+                    el.tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame });
+                }
+            }
+        }
+        if let Some(ls) = layer.springs {
+            for &s in ls.entities() {
+                if let Ok(sp) = items.springs.get(s) {
+                    el.springs.push(SpringElem { v: [idx(&sp.a), idx(&sp.b)], k: sp.stiffness });
+                }
+            }
+        }
+    }
+    packed.length_scale = skinsim::mesh::bounds::diagonal(&packed.state.x);
+    packed.elements = el;
+    index.faces = face_count;
+    index.tets = tet_count;
+    packed.cache.invalidate();
+}
