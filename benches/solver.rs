@@ -8,10 +8,10 @@ use glam::{DVec2, DVec3};
 use skinsim::mesh::{grid, GridPattern};
 use skinsim::physics::psd::Filter;
 use skinsim::physics::{ConstitutiveModel, HingeModel, Lame};
-use skinsim::solve::SolverSettings;
 use skinsim::solve::eval::assemble;
 use skinsim::solve::linear::CholeskySolver;
 use skinsim::solve::pattern::Pattern;
+use skinsim::solve::SolverSettings;
 use skinsim::solve::{solve_frame, PackedPatch};
 
 /// A square film with about `dofs` free DOFs, clamped on its x sides, slightly compressed

@@ -1,16 +1,15 @@
-//! PropertyResample (ARCHITECTURE.md 2; LK14 5.2): rest data for the elements a remesh created.
-//! A face without `FaceRest` gets its rest shape, the layer's prestrain F0 (H15 4.3) and the
-//! property map's thickness and modulus at its centroid; an edge with `EdgeOpposite` gets its
-//! `Hinge` (with the prestrain's rest curvature), the map's bending factor sampled at its
-//! midpoint; the lumped masses of every layer that got new faces are recomputed.
+//! PropertyResample (ARCHITECTURE.md 2; LK14 5.2): rest data for the elements a remesh created,
+//! by the same rules as at spawn (`skinsim::model::ShellRest`). A face without `FaceRest` gets
+//! its rest shape, the layer's prestrain F0 (H15 4.3) and the property map's thickness and
+//! modulus at its centroid; an edge with `EdgeOpposite` gets its `Hinge` (with the prestrain's
+//! rest curvature), the map's bending factor sampled at its midpoint; the lumped masses of
+//! every layer that got new faces are recomputed.
 
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
-use glam::{DMat2, DVec2};
+use glam::DVec2;
 use skinsim::model::*;
-use skinsim::physics::membrane::MembraneRest;
-use skinsim::physics::prestrain::hinge_with_curvature;
 
 pub fn resample_properties(world: &mut World) {
     let faces: Vec<(Entity, [Entity; 3], Entity)> = world
@@ -33,48 +32,40 @@ pub fn resample_properties(world: &mut World) {
             prestrain: world.get::<LayerPrestrain>(layer).cloned(),
         });
     }
+    let rest_of = |world: &World, v: Entity| world.get::<RestPos>(v).expect("vertex").0;
+    let uv_of = |world: &World, v: Entity| world.get::<MaterialPos>(v).expect("vertex").0;
     let mut layers: Vec<Entity> = Vec::new();
     for (face, tri, layer) in faces {
         let data = &layer_data[&layer];
-        let Some(h) = data.thickness else { continue };
-        let rest = tri.map(|v| world.get::<RestPos>(v).expect("vertex").0);
-        let uv = tri.map(|v| world.get::<MaterialPos>(v).expect("vertex").0);
-        let centre = (uv[0] + uv[1] + uv[2]) / 3.0;
-        let local = factors_at(data.properties.as_ref(), centre);
-        let f0 = |tri: [glam::DVec3; 3]| data.prestrain.as_ref().map(|p| p.face_f0(tri, centre));
+        let Some(rules) = data.rules() else { continue };
+        let uv = tri.map(|v| uv_of(world, v));
         // (a rest triangle a remesh made degenerate falls back to its material-space shape,
         // which a remesh keeps positive)
         let flat = uv.map(|u| u.extend(0.0));
-        let shape = [rest, flat].into_iter().find_map(|tri| {
-            let f0 = f0(tri);
-            MembraneRest::from_rest_triangle(tri, h * local.thickness, f0.unwrap_or(DMat2::IDENTITY)).map(|s| (s, f0))
-        });
-        let Some((shape, f0)) = shape else { continue };
+        let Some(shape) = [tri.map(|v| rest_of(world, v)), flat].into_iter().find_map(|t| rules.face(t, uv)) else {
+            continue;
+        };
         let mut e = world.entity_mut(face);
-        e.insert(FaceRest(shape));
-        if let Some(f0) = f0 {
+        e.insert(FaceRest(shape.rest));
+        if let Some(f0) = shape.prestrain {
             e.insert(FacePrestrain(f0));
         }
         if data.properties.is_some() {
-            e.insert(ModulusScale(local.young));
+            e.insert(ModulusScale(shape.young));
         }
         layers.push(layer);
     }
     for (edge, ends, opposite, layer) in edges {
         let data = &layer_data[&layer];
-        let Some(bending) = data.bending else { continue };
-        let q = [ends[0], ends[1], opposite[0], opposite[1]];
-        let rest = q.map(|v| world.get::<RestPos>(v).expect("vertex").0);
-        let mid: DVec2 = ends.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0).sum::<DVec2>() / 2.0;
-        let k_b = bending.stiffness * factors_at(data.properties.as_ref(), mid).bending();
-        let (kappa, along) = data.prestrain.as_ref().map_or((0.0, 0), |p| (p.curvature, p.along));
-        let hinge = Hinge { opposite, rest: hinge_with_curvature(bending.model, k_b, rest, kappa, along), image: None };
-        world.entity_mut(edge).insert(hinge).remove::<EdgeOpposite>();
+        let (Some(bending), Some(rules)) = (data.bending, data.rules()) else { continue };
+        let x = [ends[0], ends[1], opposite[0], opposite[1]].map(|v| rest_of(world, v));
+        let rest = rules.hinge(&bending, 1.0, x, ends.map(|v| uv_of(world, v)));
+        world.entity_mut(edge).insert(Hinge { opposite, rest, image: None }).remove::<EdgeOpposite>();
     }
     layers.sort_unstable();
     layers.dedup();
     for layer in layers {
-        lump_masses(world, layer);
+        lump_masses(world, layer, &layer_data[&layer]);
     }
 }
 
@@ -85,20 +76,33 @@ struct LayerData {
     prestrain: Option<LayerPrestrain>,
 }
 
-/// Lumped masses: density x thickness x rest area / 3 per vertex (as at spawn).
-fn lump_masses(world: &mut World, layer: Entity) {
-    let Some(density) = world.get::<Material>(layer).map(|m| m.density) else { return };
-    let faces: Vec<Entity> = world.get::<LayerFaces>(layer).map_or(Vec::new(), |f| f.entities().to_vec());
-    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
-    let mut mass: HashMap<Entity, f64> = verts.iter().map(|&v| (v, 0.0)).collect();
-    for f in faces {
-        let (Some(tri), Some(rest)) = (world.get::<FaceVerts>(f), world.get::<FaceRest>(f)) else { continue };
-        let m = density * rest.0.volume / 3.0;
-        for v in tri.0 {
-            *mass.get_mut(&v).expect("a face's vertex is its layer's") += m;
-        }
+impl LayerData {
+    /// A shell's rest rules (None for a layer without a thickness).
+    fn rules(&self) -> Option<ShellRest<'_>> {
+        Some(ShellRest {
+            thickness: self.thickness?,
+            prestrain: self.prestrain.as_ref(),
+            properties: self.properties.as_ref(),
+        })
     }
-    for (v, m) in mass {
+}
+
+/// The layer's lumped masses, recomputed from its rest mesh (as at spawn).
+fn lump_masses(world: &mut World, layer: Entity, data: &LayerData) {
+    let (Some(density), Some(rules)) = (world.get::<Material>(layer).map(|m| m.density), data.rules()) else { return };
+    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
+    let slot: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
+    let faces: Vec<[u32; 3]> = world
+        .get::<LayerFaces>(layer)
+        .map_or(&[][..], |f| f.entities())
+        .iter()
+        .filter_map(|&f| world.get::<FaceVerts>(f))
+        .map(|f| f.0.map(|v| slot[&v]))
+        .collect();
+    let rest: Vec<_> = verts.iter().map(|&v| world.get::<RestPos>(v).expect("vertex").0).collect();
+    let uv: Vec<DVec2> = verts.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0).collect();
+    let mass = rules.masses(density, &rest, &uv, &faces);
+    for (v, m) in verts.into_iter().zip(mass) {
         world.entity_mut(v).insert(Mass(m));
     }
 }

@@ -6,9 +6,9 @@ mod common;
 
 use bevy_ecs::prelude::*;
 use common::*;
+use skinsim::model::PackedIndex;
 use skinsim::model::{Mass, Position, Spring};
 use skinsim::scene::load_str;
-use skinsim::model::PackedIndex;
 use skinsim::solve::PackedPatch;
 use skinsim_systems::Simulation;
 

@@ -5,11 +5,11 @@ mod common;
 
 use common::*;
 use glam::DVec3;
+use skinsim::model::PackedIndex;
 use skinsim::model::RestPos;
 use skinsim::physics::{gaussian_bending, hinge, BendingElement};
 use skinsim::scene::built::{BuiltDriver, LayerMesh};
 use skinsim::solve::eval::vertex_gradient;
-use skinsim::model::PackedIndex;
 use skinsim::solve::PackedPatch;
 
 /// Plate bending stiffness D = E h^3 / (12 (1 - nu^2)) of the first layer.

@@ -16,7 +16,10 @@ pub enum Region {
     /// On any of these sides of the bounding box: (axis, the max side?).
     Sides(Vec<(usize, bool)>),
     /// Inside this box (m).
-    Box { min: DVec3, max: DVec3 },
+    Box {
+        min: DVec3,
+        max: DVec3,
+    },
 }
 
 /// The indices of the vertices in `region`.
@@ -137,8 +140,7 @@ pub fn bottom_faces(rest: &[DVec3], tets: &[[u32; 4]]) -> (Vec<[u32; 3]>, Vec<bo
     let zmin = rest.iter().fold(f64::INFINITY, |z, p| z.min(p.z));
     let tol = 1e-9 * super::bounds::diagonal(rest).max(1e-300);
     let bottom: Vec<bool> = rest.iter().map(|p| p.z <= zmin + tol).collect();
-    let faces =
-        super::surface_of_tets(tets).into_iter().filter(|f| f.iter().all(|&v| bottom[v as usize])).collect();
+    let faces = super::surface_of_tets(tets).into_iter().filter(|f| f.iter().all(|&v| bottom[v as usize])).collect();
     (faces, bottom)
 }
 

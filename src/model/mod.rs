@@ -12,10 +12,12 @@ mod anchors;
 mod drivers;
 mod maps;
 mod resources;
+mod rest;
 pub use anchors::*;
 pub use drivers::*;
 pub use maps::*;
 pub use resources::*;
+pub use rest::*;
 
 // ---------------------------------------------------------------- patches and layers
 
@@ -105,7 +107,14 @@ pub struct PackedIndex {
 
 impl Default for PackedIndex {
     fn default() -> Self {
-        PackedIndex { key: u64::MAX, vertices: Vec::new(), index: Default::default(), anchors: Vec::new(), faces: 0, tets: 0 }
+        PackedIndex {
+            key: u64::MAX,
+            vertices: Vec::new(),
+            index: Default::default(),
+            anchors: Vec::new(),
+            faces: 0,
+            tets: 0,
+        }
     }
 }
 

@@ -98,7 +98,12 @@ impl QuadraticBending {
         }
         let mut out = QuadraticBending { start: vec![0], ..Default::default() };
         for v in 0..n {
-            if boundary.get(v).copied().unwrap_or(false) || weights[v].is_empty() || d_count[v] == 0 || area[v].is_nan() || area[v] <= 0.0 {
+            if boundary.get(v).copied().unwrap_or(false)
+                || weights[v].is_empty()
+                || d_count[v] == 0
+                || area[v].is_nan()
+                || area[v] <= 0.0
+            {
                 continue;
             }
             let mut ws = std::mem::take(&mut weights[v]);

@@ -61,17 +61,10 @@ impl Builder {
             DriverSpec::Compress { layers: ls, axis, keyframes, predict } => {
                 keyframes_ok(keyframes, "strain")?;
                 if let Some((i, _)) = keyframes.iter().enumerate().find(|(_, k)| k.1 >= 1.0) {
-                    return Err(
-                        self.err(format!("{dat}.keyframes[{i}]"), "a strain of 1 or more collapses the patch")
-                    );
+                    return Err(self.err(format!("{dat}.keyframes[{i}]"), "a strain of 1 or more collapses the patch"));
                 }
                 let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
-                BuiltDriver::Compress {
-                    layers,
-                    axis: axis.index(),
-                    keyframes: keyframes.clone(),
-                    predict: *predict,
-                }
+                BuiltDriver::Compress { layers, axis: axis.index(), keyframes: keyframes.clone(), predict: *predict }
             }
             DriverSpec::Bend { layers: ls, axis, keyframes } => {
                 keyframes_ok(keyframes, "curvature")?;
@@ -85,15 +78,19 @@ impl Builder {
             DriverSpec::PlaneStrain { layers: ls, axis } => {
                 let layers_i: Vec<usize> =
                     ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
-                let ties =
-                    layers_i.iter().map(|&li| mesh::select::plane_strain_ties(layers[li].mesh.rest(), axis.index())).collect();
+                let ties = layers_i
+                    .iter()
+                    .map(|&li| mesh::select::plane_strain_ties(layers[li].mesh.rest(), axis.index()))
+                    .collect();
                 BuiltDriver::PlaneStrain { layers: layers_i, axis: axis.index(), ties }
             }
             DriverSpec::Periodic { layers: ls, axis } => {
                 let layers_i: Vec<usize> =
                     ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
-                let ties: Vec<Vec<(u32, u32)>> =
-                    layers_i.iter().map(|&li| mesh::select::periodic_ties(layers[li].mesh.rest(), axis.index())).collect();
+                let ties: Vec<Vec<(u32, u32)>> = layers_i
+                    .iter()
+                    .map(|&li| mesh::select::periodic_ties(layers[li].mesh.rest(), axis.index()))
+                    .collect();
                 if ties.iter().all(|t| t.is_empty()) {
                     return Err(
                         self.err(format!("{dat}.layers"), "no vertex on the max side matches one on the min side")
@@ -135,7 +132,10 @@ impl Builder {
                 if let Some(&li) = layers_i.iter().find(|&&li| quadratic(&layers[li])) {
                     return Err(self.err(
                         format!("{dat}.layers"),
-                        format!("\"{}\" bends with the quadratic element, which has no rest curvature to capture into", layers[li].name),
+                        format!(
+                            "\"{}\" bends with the quadratic element, which has no rest curvature to capture into",
+                            layers[li].name
+                        ),
                     ));
                 }
                 if let Some(&li) = layers_i.iter().find(|&&li| layers[li].remesh.is_some()) {
@@ -162,8 +162,7 @@ impl Builder {
             }
             DriverSpec::Articulate { layer, pose, weights, interpolation } => {
                 let li = find(format!("{dat}.layer"), layer)?;
-                let frames =
-                    self.articulate(dat, pose, weights, *interpolation, &layers[li], len, scene.frames)?;
+                let frames = self.articulate(dat, pose, weights, *interpolation, &layers[li], len, scene.frames)?;
                 BuiltDriver::Sequence { layer: li, frames, start: 0 }
             }
             DriverSpec::ObjSequence { layer, files, start } => {

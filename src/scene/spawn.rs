@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
-use glam::{DMat2, DMat3, DVec2};
+use glam::{DMat3, DVec2};
 use rand::{Rng, SeedableRng};
 
 use super::built::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
@@ -13,8 +13,6 @@ use crate::mesh;
 use crate::mesh::imperfection::Imperfection;
 use crate::model::*;
 use crate::physics::hinge::HingeRest;
-use crate::physics::membrane::MembraneRest;
-use crate::physics::prestrain;
 use crate::physics::tet::TetRest;
 
 /// Spawns every patch of the scene and inserts the clock. Returns the patch entities.
@@ -297,25 +295,21 @@ fn spawn_layer(
     match &l.mesh {
         LayerMesh::Surface(m) => {
             let shell = l.kind == LayerKind::Shell;
-            let h = l.thickness.unwrap_or(0.0);
+            let layer_rest = shell_rest(l);
             let scale = modulus(if shell { m.faces.len() } else { 0 });
             for (fi, f) in m.faces.iter().enumerate() {
                 let mut e = world.spawn((FaceVerts(f.map(|i| verts[i as usize])), FaceOf(layer)));
                 if !shell {
                     continue;
                 }
-                let tri = f.map(|i| m.rest[i as usize]);
-                let centre = f.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 3.0;
-                let f0 = l.prestrain.as_ref().map(|p| p.face_f0(tri, centre));
-                let local = factors_at(l.properties.as_ref(), centre); // LK14 5.2: faces at the centroid
-                let rest = MembraneRest::from_rest_triangle(tri, h * local.thickness, f0.unwrap_or(DMat2::IDENTITY))
-                    .expect("checked mesh");
-                e.insert(FaceRest(rest));
-                if let Some(f0) = f0 {
+                let data =
+                    layer_rest.face(f.map(|i| m.rest[i as usize]), f.map(|i| uv[i as usize])).expect("checked mesh");
+                e.insert(FaceRest(data.rest));
+                if let Some(f0) = data.prestrain {
                     e.insert(FacePrestrain(f0));
                 }
                 if scale.is_some() || l.properties.is_some() {
-                    e.insert(ModulusScale(scale.as_ref().map_or(1.0, |s| s[fi]) * local.young));
+                    e.insert(ModulusScale(scale.as_ref().map_or(1.0, |s| s[fi]) * data.young));
                 }
             }
             // A hinge's stiffness follows its faces' moduli (mean of the two).
@@ -332,7 +326,6 @@ fn spawn_layer(
                 let face = |a: u32, b: u32, c: u32| face_index.get(&sorted([a, b, c])).map_or(1.0, |&i| s[i]);
                 0.5 * (face(q[0], q[1], q[2]) + face(q[0], q[1], q[3]))
             };
-            let curvature = l.prestrain.as_ref().map_or((0.0, 0), |p| (p.curvature, p.along));
             if shell {
                 let bending = l.bending;
                 let batch: Vec<_> = mesh::edges(&m.faces)
@@ -341,14 +334,10 @@ fn spawn_layer(
                         let hinge = match (bending, e.is_interior()) {
                             (Some(b), true) => {
                                 let q = [e.v[0], e.v[1], e.opposite[0], e.opposite[1]];
-                                // LK14 5.2: edges sample the map at their midpoint (D ~ E h^3).
-                                let mid = 0.5 * (uv[e.v[0] as usize] + uv[e.v[1] as usize]);
-                                let local = factors_at(l.properties.as_ref(), mid).bending();
-                                let k_b = b.stiffness * hinge_scale(q) * local;
-                                let x = q.map(|i| m.rest[i as usize]);
+                                let (x, ends) = (q.map(|i| m.rest[i as usize]), e.v.map(|i| uv[i as usize]));
                                 Some(Hinge {
                                     opposite: [verts[q[2] as usize], verts[q[3] as usize]],
-                                    rest: prestrain::hinge_with_curvature(b.model, k_b, x, curvature.0, curvature.1),
+                                    rest: layer_rest.hinge(&b, hinge_scale(q), x, ends),
                                     image: None,
                                 })
                             }
@@ -385,36 +374,22 @@ fn spawn_layer(
     (layer, verts)
 }
 
-/// Lumped masses: density x thickness x area / 3 per shell vertex, density x volume / 4 per
-/// tet vertex; kinematic vertices carry none.
-fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
-    let n = l.mesh.rest().len();
-    let mut mass = vec![0.0; n];
-    let Some(mat) = l.material else { return mass };
-    match &l.mesh {
-        LayerMesh::Surface(m) => {
-            let h = l.thickness.unwrap_or(0.0);
-            for f in &m.faces {
-                let p = |i: usize| m.rest[f[i] as usize];
-                let a = 0.5 * (p(1) - p(0)).cross(p(2) - p(0)).length();
-                let centre = f.iter().map(|&i| m.uv[i as usize]).sum::<DVec2>() / 3.0;
-                let t = factors_at(l.properties.as_ref(), centre).thickness;
-                for &v in f {
-                    mass[v as usize] += mat.density * h * t * a / 3.0;
-                }
-            }
-        }
-        LayerMesh::Volume(m) => {
-            for t in &m.tets {
-                let p = |i: usize| m.rest[t[i] as usize];
-                let vol = (p(1) - p(0)).cross(p(2) - p(0)).dot(p(3) - p(0)) / 6.0;
-                for &v in t {
-                    mass[v as usize] += mat.density * vol / 4.0;
-                }
-            }
-        }
+/// What a shell layer's face and hinge rest data depend on.
+fn shell_rest(l: &BuiltLayer) -> ShellRest<'_> {
+    ShellRest {
+        thickness: l.thickness.unwrap_or(0.0),
+        prestrain: l.prestrain.as_ref(),
+        properties: l.properties.as_ref(),
     }
-    mass
+}
+
+/// Lumped masses (`ShellRest::masses`, `volume_masses`); kinematic vertices carry none.
+fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
+    let Some(mat) = l.material else { return vec![0.0; l.mesh.rest().len()] };
+    match &l.mesh {
+        LayerMesh::Surface(m) => shell_rest(l).masses(mat.density, &m.rest, &m.uv, &m.faces),
+        LayerMesh::Volume(m) => volume_masses(mat.density, &m.rest, &m.tets),
+    }
 }
 
 /// A geometric imperfection: free shell vertices moved along their rest normal by a seeded

@@ -15,7 +15,6 @@
 
 use glam::DVec3;
 
-use super::packed::PackedPatch;
 use super::constraints::Constraints;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
@@ -23,10 +22,11 @@ use super::kkt::KktSystem;
 use super::newton::{
     element_filter, line_search, step, FrameOutcome, FrameStart, ADAPTIVE_SWITCH, ARMIJO, FORCE_FLOOR, STALL,
 };
+use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
+use super::settings::SolverSettings;
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
-use super::settings::SolverSettings;
 
 /// Largest constraint violation at convergence, relative to the patch size (PHYSICS.md 2).
 pub const CONSTRAINT_TOLERANCE: f64 = 1e-9;

@@ -3,15 +3,15 @@
 
 use glam::DVec3;
 
-use super::packed::PackedPatch;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::kkt::KktSystem;
 use super::linear::CholeskySolver;
+use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
+use super::settings::{LinearSolver, SolveMode, SolverSettings};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
-use super::settings::{LinearSolver, SolveMode, SolverSettings};
 
 /// Armijo sufficient-decrease constant.
 pub(super) const ARMIJO: f64 = 1e-4;
@@ -66,7 +66,9 @@ fn predictor(packed: &PackedPatch, dynamic: bool, dt: f64) -> Vec<DVec3> {
     if !dynamic {
         return Vec::new();
     }
-    packed.state.x
+    packed
+        .state
+        .x
         .iter()
         .zip(&packed.state.v)
         .zip(&packed.state.fixed)
@@ -199,8 +201,7 @@ fn newton(
     let n = pattern.n;
     let start = FrameStart::begin(packed, settings.mode, dt);
     let inertia = start.inertia();
-    let total =
-        |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
+    let total = |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
     let energy_scale = packed.elements.energy_scale(packed.length_scale);
     let mut grad = vec![0.0; n];
@@ -332,7 +333,8 @@ fn newton(
             }
         }
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        if !line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out) {
+        if !line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out)
+        {
             break;
         }
     }

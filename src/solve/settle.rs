@@ -13,8 +13,8 @@
 use glam::{DMat3, DVec3};
 use nalgebra::{SMatrix, SVector};
 
-use super::elements::Elements;
 use super::constraints::Constraints;
+use super::elements::Elements;
 use crate::physics::psd::Filter;
 use crate::physics::{gaussian_bending, hinge, membrane};
 
