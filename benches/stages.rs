@@ -18,9 +18,9 @@ fn main() {
     for _ in 0..scene.scene.frames {
         let s = sim.step();
         for stage in Stage::ALL {
-            totals[stage as usize] += s.timing(stage.key());
+            totals[stage as usize] += s.timing(stage);
         }
-        total += s.timing("total");
+        total += s.total_ms();
         iterations += s.patches.iter().map(|p| p.newton_iterations).sum::<u32>();
         for p in &s.patches {
             inner[0] += p.solve_breakdown_ms.assemble_ms;

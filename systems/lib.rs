@@ -3,12 +3,12 @@
 
 pub mod anchors;
 pub mod assemble;
-pub mod blend_shapes;
 pub mod capture;
 pub mod kernels;
 pub mod log;
 pub mod log_anchors;
 mod log_mesh;
+pub mod motion;
 pub mod properties;
 pub mod remesh;
 pub mod schedule;

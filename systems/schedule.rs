@@ -9,7 +9,7 @@ use skinsim::model::{Anchor, Kernel, PatchCaptures, PatchMotion, RemeshSettings,
 
 use crate::log::{log_frame, wants_logging, RerunSink};
 use crate::log_anchors::log_anchors;
-use crate::{anchors, assemble, blend_shapes, capture, kernels, properties, remesh, settle, solve, writeback};
+use crate::{anchors, assemble, capture, kernels, motion, properties, remesh, settle, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Frame;
@@ -23,7 +23,7 @@ pub fn build_schedule() -> Schedule {
     s.set_executor(SingleThreadedExecutor::new());
     s.configure_sets(
         (
-            StageSet(Stage::BlendShapes).run_if(any_with_component::<PatchMotion>),
+            StageSet(Stage::Motion).run_if(any_with_component::<PatchMotion>),
             StageSet(Stage::Remesh).run_if(any_with_component::<RemeshSettings>),
             StageSet(Stage::PropertyResample).run_if(any_with_component::<RemeshSettings>),
             StageSet(Stage::ConstraintResample).run_if(any_with_component::<Kernel>),
@@ -37,7 +37,7 @@ pub fn build_schedule() -> Schedule {
         )
             .chain(),
     );
-    s.add_systems(timed(Stage::BlendShapes, blend_shapes::apply_motions));
+    s.add_systems(timed(Stage::Motion, motion::apply_motions));
     s.add_systems(timed(Stage::Remesh, remesh::remesh_layers));
     s.add_systems(timed(Stage::PropertyResample, properties::resample_properties));
     s.add_systems(timed(Stage::ConstraintResample, kernels::resample_kernels));

@@ -17,10 +17,24 @@ pub struct FrameStats {
 }
 
 impl FrameStats {
-    pub fn timing(&self, key: &str) -> f64 {
-        self.timings_ms.get(key).and_then(|v| v.as_f64()).unwrap_or(0.0)
+    /// A stage's wall time in this frame (ms; 0 for a stage that did not run).
+    pub fn timing(&self, stage: Stage) -> f64 {
+        self.ms(stage.key())
+    }
+
+    /// The frame's wall time (ms).
+    pub fn total_ms(&self) -> f64 {
+        self.ms(TOTAL)
+    }
+
+    fn ms(&self, key: &str) -> f64 {
+        let value = self.timings_ms.get(key).and_then(|v| v.as_f64());
+        value.unwrap_or_else(|| panic!("stats hold no timing \"{key}\""))
     }
 }
+
+/// The key of the frame's wall time in `timings_ms` (beside every stage's `Stage::key`).
+pub const TOTAL: &str = "total";
 
 pub struct Simulation {
     pub world: World,
@@ -52,7 +66,7 @@ impl Simulation {
         for stage in Stage::ALL {
             timings_ms.insert(stage.key().into(), timings.get(stage).into());
         }
-        timings_ms.insert("total".into(), total.into());
+        timings_ms.insert(TOTAL.into(), total.into());
         FrameStats {
             frame: clock.frame,
             time: clock.time,

@@ -59,7 +59,7 @@ fn stages_run_in_order_and_only_what_a_scene_declares() {
     record_stages(&mut sim);
     sim.step();
     let ran = &sim.world.resource::<Ran>().0;
-    let order = [Stage::BlendShapes, Stage::Remesh, Stage::PropertyResample, Stage::ConstraintResample];
+    let order = [Stage::Motion, Stage::Remesh, Stage::PropertyResample, Stage::ConstraintResample];
     assert_eq!(ran[..4], order, "{ran:?}");
     // Settle only in a frame whose remesh changed a face (the first frame keeps the scene's
     // mesh), between Assemble and Solve.
@@ -79,7 +79,7 @@ fn stages_run_in_order_and_only_what_a_scene_declares() {
     assert!(at(Stage::AnchorWalk).is_some() && at(Stage::AnchorWalk) < at(Stage::Assemble), "{ran:?}");
     assert!(at(Stage::ConstraintResample).is_none(), "{ran:?}");
 
-    // No drivers: no BlendShapes work. A sink: the Log stage runs, last.
+    // No drivers: no Motion work. A sink: the Log stage runs, last.
     let scene = load_str(SHEET_WITHOUT_DRIVERS, &scene_path("still.ron")).unwrap();
     let mut sim = Simulation::new(&scene);
     record_stages(&mut sim);
@@ -87,10 +87,24 @@ fn stages_run_in_order_and_only_what_a_scene_declares() {
     sim.world.insert_resource(ObjExport(dir.clone()));
     sim.step();
     let ran = &sim.world.resource::<Ran>().0;
-    assert!(!ran.contains(&Stage::BlendShapes));
+    assert!(!ran.contains(&Stage::Motion));
     assert_eq!(ran.last(), Some(&Stage::Log));
     assert!(dir.join("obj/sheet/sheet/00001.obj").is_file());
     let _ = std::fs::remove_dir_all(dir);
+}
+
+/// Stage timings are read by stage, not by a string key: every stage and the total are in a
+/// frame's stats, and a timing that is missing is an error, not a zero.
+#[test]
+fn every_stage_is_timed_and_a_missing_timing_is_an_error() {
+    let mut sim = Simulation::new(&load("strip_wrinkles.ron"));
+    let s = sim.step();
+    assert_eq!(s.timings_ms.len(), Stage::ALL.len() + 1, "{:?}", s.timings_ms);
+    assert!(Stage::ALL.iter().all(|&stage| s.timing(stage) >= 0.0) && s.total_ms() > 0.0);
+    assert!(s.timing(Stage::Solve) > 0.0 && s.timing(Stage::Remesh) == 0.0, "{:?}", s.timings_ms);
+    let mut without = s.clone();
+    without.timings_ms.remove(Stage::Solve.key());
+    assert!(std::panic::catch_unwind(|| without.timing(Stage::Solve)).is_err());
 }
 
 fn positions_hash(sim: &mut Simulation) -> u64 {

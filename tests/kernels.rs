@@ -72,14 +72,14 @@ fn ldlt_and_schur_agree() {
     assert!(worst < 1e-8, "LDLT and Schur differ by {worst:.2e} m");
 }
 
-/// The constraint stages run only when kernels exist, between BlendShapes and Assemble.
+/// The constraint stages run only when kernels exist, between Motion and Assemble.
 #[test]
 fn constraint_stages_run_with_kernels() {
     let scene = load_str(&held_sheet("Ldlt", "Clamp"), &scene_path("held.ron")).unwrap();
     let mut sim = Simulation::new(&scene);
     sim.step();
     let s = sim.step();
-    assert!(s.timing("constraint_resample") > 0.0 && s.timing("constraint_adjust") > 0.0);
+    assert!(s.timing(Stage::ConstraintResample) > 0.0 && s.timing(Stage::ConstraintAdjust) > 0.0);
 }
 
 /// ARCHITECTURE.md 2: a kernel is resampled when one of its layers' meshes changes. Here the

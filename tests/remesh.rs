@@ -97,7 +97,7 @@ fn a_remeshed_layer_coarsens_where_flat_refines_where_it_wrinkles_and_converges(
         let report = *sim.world.get::<RemeshReport>(dermis).unwrap();
         // The first frame is solved on the scene's mesh; every later one is remeshed first.
         assert_eq!(report.frame, if frame == 1 { 0 } else { frame as u64 }, "{report:?}");
-        assert!(frame == 1 || s.timing("remesh") > 0.0 && s.timing("property_resample") > 0.0);
+        assert!(frame == 1 || s.timing(Stage::Remesh) > 0.0 && s.timing(Stage::PropertyResample) > 0.0);
         counts.push(sim.world.get::<LayerVertices>(dermis).unwrap().entities().len());
     }
     let a = areas(&sim);
@@ -113,8 +113,8 @@ fn remesh_stages_run_only_for_layers_that_ask() {
     let mut scene = load("lk14/fig6_3_one_layer_quick.ron");
     scene.scene.frames = 1;
     let (_, stats) = run(&scene);
-    assert_eq!(stats[0].timing("remesh"), 0.0);
-    assert_eq!(stats[0].timing("property_resample"), 0.0);
+    assert_eq!(stats[0].timing(Stage::Remesh), 0.0);
+    assert_eq!(stats[0].timing(Stage::PropertyResample), 0.0);
 }
 
 #[test]

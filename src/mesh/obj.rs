@@ -7,12 +7,23 @@ use glam::{DVec2, DVec3};
 
 use super::SurfaceMesh;
 
+/// Why an OBJ file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ObjError {
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    #[error(transparent)]
+    Parse(#[from] tobj::LoadError),
+    #[error("vertex {vertex} (line of the {}th `v`) is not used by any face", vertex + 1)]
+    Unreferenced { vertex: usize },
+}
+
 /// Loads a triangle surface. Positions are multiplied by `to_metres`; material coordinates come
 /// from `vt` (scaled the same way) or, without texture coordinates, from the rest xy.
-pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, String> {
+pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, ObjError> {
     unreferenced_vertex(path)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
-    let (models, _) = tobj::load_obj(path, &opts).map_err(|e| e.to_string())?;
+    let (models, _) = tobj::load_obj(path, &opts)?;
     let mut m = SurfaceMesh::default();
     for model in models {
         let mesh = model.mesh;
@@ -36,8 +47,8 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, String> {
 }
 
 /// tobj drops vertices no face uses; a mesh with such vertices is refused, so scan for them.
-fn unreferenced_vertex(path: &Path) -> Result<(), String> {
-    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+fn unreferenced_vertex(path: &Path) -> Result<(), ObjError> {
+    let text = std::fs::read_to_string(path)?;
     let mut count = 0usize;
     let mut used = Vec::new();
     for line in text.lines() {
@@ -60,7 +71,7 @@ fn unreferenced_vertex(path: &Path) -> Result<(), String> {
         }
     }
     match used.iter().position(|u| !u) {
-        Some(v) => Err(format!("vertex {v} (line of the {}th `v`) is not used by any face", v + 1)),
+        Some(vertex) => Err(ObjError::Unreferenced { vertex }),
         None => Ok(()),
     }
 }

@@ -9,13 +9,13 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use crate::physics::{ConstitutiveModel, HingeModel, HingeRest, Lame};
 
 mod anchors;
-mod drivers;
 mod maps;
+mod motion;
 mod resources;
 mod rest;
 pub use anchors::*;
-pub use drivers::*;
 pub use maps::*;
+pub use motion::*;
 pub use resources::*;
 pub use rest::*;
 

@@ -14,10 +14,11 @@ pub struct SimClock {
     pub dt: f64,
 }
 
-/// The ten stages of a frame (ARCHITECTURE.md 2), in order.
+/// The eleven stages of a frame (ARCHITECTURE.md 2), in order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Stage {
-    BlendShapes,
+    /// Prescribed motions (the design card's blend-shape update; ARCHITECTURE.md's BlendShapes).
+    Motion,
     Remesh,
     PropertyResample,
     ConstraintResample,
@@ -33,7 +34,7 @@ pub enum Stage {
 
 impl Stage {
     pub const ALL: [Stage; 11] = [
-        Stage::BlendShapes,
+        Stage::Motion,
         Stage::Remesh,
         Stage::PropertyResample,
         Stage::ConstraintResample,
@@ -48,7 +49,7 @@ impl Stage {
     /// Column name in stats.jsonl.
     pub fn key(self) -> &'static str {
         match self {
-            Stage::BlendShapes => "blend_shapes",
+            Stage::Motion => "motion",
             Stage::Remesh => "remesh",
             Stage::PropertyResample => "property_resample",
             Stage::ConstraintResample => "constraint_resample",

@@ -99,7 +99,7 @@ impl Builder {
                 if !full.is_file() {
                     return Err(SceneError::at_field(&full, &field, format!("file not found: {}", full.display())));
                 }
-                let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e))?;
+                let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 if m.rest.len() != rest.len() {
                     return Err(SceneError::at_field(
                         &full,

@@ -94,7 +94,7 @@ impl Builder {
                         format!("mesh file not found: {}", full.display()),
                     ));
                 }
-                let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e))?;
+                let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 LayerMesh::Surface(m)
             }

@@ -82,7 +82,8 @@ impl Builder {
                 TargetShape::Obj(path) => {
                     let full = self.dir.join(path);
                     let field = format!("{tat}.shape");
-                    let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e))?;
+                    let m =
+                        mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                     if m.rest.len() != rest.len() {
                         return Err(SceneError::at_field(
                             &full,

@@ -5,13 +5,8 @@
 //!
 //! No saddle test here: the unconstrained Hessian of a held shell is indefinite at every
 //! buckled state, so `stability_check` applies to unconstrained patches only; held shells
-//! leave the flat state through the scene's perturbation.
-//!
-//! Measured on fig. 6-3 (10 frames: 187 Newton iterations, 247 factorizations) and rejected:
-//! a frame predictor moving the free vertices by the base's least-squares affine motion (264
-//! iterations, 362 factorizations: the wrinkled epidermis is compressed with the base and must
-//! re-wrinkle); a tolerance of 1e-5 (113 iterations, but the first frame then stops before the
-//! sheet buckles and the run ends in another equilibrium, 65 % of the amplitude away).
+//! leave the flat state through the scene's perturbation. (Variants measured and rejected:
+//! `README.md`.)
 
 use glam::DVec3;
 

@@ -2,10 +2,8 @@
 //! c_k(x) = sum_i w_i x_i(upper) - sum_j w_j (x_j(lower) + t_j n_j(lower)) = 0,
 //! n_j the area-weighted vertex normal of the lower layer. The Jacobian is exact: it includes
 //! the derivative of the normals when the lower layer moves (its curvature term, lambda^T
-//! d2c/dx2, is left out of the Newton matrix: a Gauss-Newton SQP step). Measured on the
-//! two-layer fig. 6-3 scene, 10 frames: with the exact term (which couples each moving lower
-//! vertex's whole ring in the pattern) 195 Newton iterations and 267 factorizations, against 187
-//! and 247 without; the frames that end near a residual of 1e-5 end there with it too.
+//! d2c/dx2, is left out of the Newton matrix: a Gauss-Newton SQP step; with it, more iterations
+//! and factorizations: `README.md`).
 
 use std::collections::HashMap;
 

@@ -1,4 +1,4 @@
-//! Evaluating a body's elements: energies (line search), and energy + gradient + Hessian
+//! Evaluating a packed patch's elements: energies (line search), and energy + gradient + Hessian
 //! assembled into the cached pattern. Elements run in parallel in fixed chunks; the scatter
 //! and every sum run in element order, so results do not depend on the thread count.
 

@@ -14,11 +14,7 @@
 //! Hessian usually passes this test where a plain Cholesky of H would fail. When it does not,
 //! mu grows by factors of 10 from a small fraction of the mean diagonal; a successful mu is
 //! remembered and tried a third smaller next time. Schur needs H + mu I itself positive definite
-//! (the Cholesky succeeding), a stronger condition: measured against Ldlt in the closing note.
-//! Measured on fig. 6-3 (10 frames: 187 Newton iterations, 247 factorizations, 29-37 s) and
-//! rejected: shrinking mu faster (30x, then 300x) after steps whose first try passed (201
-//! iterations, 286 factorizations); the last factorization reused as a preconditioner for one
-//! or two inexact steps in a row (216-254 iterations, 225-233 factorizations, 38-41 s).
+//! (the Cholesky succeeding), a stronger condition. (Variants measured and rejected: `README.md`.)
 //!
 //! The constraint rows are scaled by s = sqrt(mean |diag H|) so the two blocks have comparable
 //! pivots.

@@ -472,9 +472,8 @@ fn leave_saddle(
         (curvature < -1e-9 * mean_diag).then_some(y)
     };
     // Shifted Cholesky factorizations of H + sigma I until positive definite: inverse iteration
-    // then finds the most negative curvature (the fastest-growing mode). (An L D L^T of H itself
-    // needs one factorization, but its nearest-to-zero eigenvalue picked other modes: measured,
-    // it changed which wavelength H15 experiment 5 first wrinkles at.)
+    // then finds the most negative curvature (the fastest-growing mode; an LDL^T of H itself
+    // picked other modes: `README.md`).
     factorize_shifted(chol, pattern, h, &mut Vec::new(), 1e-6, 4.0, 14)?;
     let y = inverse_iteration(chol)?;
     // Step along +-y, scaled so the largest displacement is t, growing t while energy falls.

@@ -1,6 +1,6 @@
 //! Settling the vertices a remesh touched, before the frame's solve (REMESH.md "Split": ARCSim
 //! places a split vertex by one local Newton step of a unit-stiffness stretch + bend energy; we
-//! minimize the body's own membrane + bending energy instead, over every vertex of a changed
+//! minimize the patch's own membrane + bending energy instead, over every vertex of a changed
 //! face, the rest held). Nonlinear block Gauss-Seidel: per vertex, a Newton step on its 3x3
 //! block of the projected Hessian, backtracked on the energy of its own elements, so no sweep
 //! raises the energy.

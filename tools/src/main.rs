@@ -274,7 +274,7 @@ fn run(args: RunArgs) -> ExitCode {
             }
         }
         let iters: u32 = frame.patches.iter().map(|p| p.newton_iterations).sum();
-        bar.set_message(format!("{iters} Newton its, {:.0} ms/frame", frame.timing("total")));
+        bar.set_message(format!("{iters} Newton its, {:.0} ms/frame", frame.total_ms()));
         bar.inc(1);
         if let Some(reason) = sim.failure() {
             bar.abandon();

@@ -6,6 +6,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use skinsim::model::Stage;
 use skinsim::scene;
 use skinsim_systems::Simulation;
 
@@ -46,7 +47,7 @@ pub fn kck18_figure(scene_name: &str) -> Option<(&'static str, u32, u32, f64)> {
 }
 
 /// Runs `frames` frames (default: all) of a scene and averages the stage timings:
-/// t_c = assemble (element and kernel rows packed), t_I = blend shapes + solve + write-back,
+/// t_c = assemble (element and kernel rows packed), t_I = motion (blend shapes) + solve + write-back,
 /// t_R = remesh + settle (the relaxation of its new vertices), t_S = property resample + kernel
 /// resample + adjust.
 pub fn time_scene(path: &Path, frames: Option<u32>) -> Result<TimingRow, String> {
@@ -71,16 +72,16 @@ pub fn time_scene(path: &Path, frames: Option<u32>) -> Result<TimingRow, String>
         if let Some(reason) = sim.failure() {
             return Err(format!("{}: {reason}", path.display()));
         }
-        let ms = |k: &str| s.timing(k) / 1e3;
+        let ms = |stage: Stage| s.timing(stage) / 1e3;
         row.kernels += s.patches.iter().map(|p| p.constraints as f64 / 3.0).sum::<f64>();
         row.vertices += s.patches.iter().map(|p| p.vertices as f64).sum::<f64>();
         row.newton_iterations += s.patches.iter().map(|p| p.newton_iterations as f64).sum::<f64>();
-        row.t_c += ms("assemble");
-        row.t_i += ms("blend_shapes") + ms("solve") + ms("writeback");
-        row.t_r += ms("remesh") + ms("settle");
-        row.t_s += ms("property_resample") + ms("constraint_resample") + ms("constraint_adjust");
-        row.t_w += ms("anchor_walk");
-        row.total += ms("total");
+        row.t_c += ms(Stage::Assemble);
+        row.t_i += ms(Stage::Motion) + ms(Stage::Solve) + ms(Stage::Writeback);
+        row.t_r += ms(Stage::Remesh) + ms(Stage::Settle);
+        row.t_s += ms(Stage::PropertyResample) + ms(Stage::ConstraintResample) + ms(Stage::ConstraintAdjust);
+        row.t_w += ms(Stage::AnchorWalk);
+        row.total += s.total_ms() / 1e3;
     }
     let n = frames as f64;
     for v in [

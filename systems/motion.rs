@@ -1,6 +1,6 @@
-//! BlendShapeUpdate: evaluates the patch's prescribed motions at this frame and writes the
-//! driven coordinates (H15 6.1: compression increments; bending for validation; LK14 5.3 blend
-//! shapes).
+//! Motion: evaluates the patch's prescribed motions at this frame and writes the driven
+//! coordinates (H15 6.1: compression increments; bending for validation; LK14 5.3 blend shapes;
+//! KCK18 body poses and OBJ sequences).
 
 use bevy_ecs::prelude::*;
 use skinsim::model::*;

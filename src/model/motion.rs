@@ -1,5 +1,6 @@
-//! Prescribed motions of a patch (ARCHITECTURE.md 2, BlendShapeUpdate): keyframed compression
-//! and cylinder bending, evaluated as maps of the rest position.
+//! Prescribed motions of a patch, evaluated by the Motion stage as maps of the rest position:
+//! keyframed compression and cylinder bending, blend shapes (LK14 5.3) and per-frame sequences
+//! (KCK18 bodies); and the captures that run after a frame's solve (H15 4.3).
 
 use bevy_ecs::prelude::*;
 use glam::DVec3;
