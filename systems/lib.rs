@@ -8,6 +8,7 @@ pub mod kernels;
 pub mod log;
 pub mod log_anchors;
 mod log_mesh;
+pub mod log_read;
 pub mod motion;
 pub mod properties;
 pub mod remesh;

@@ -248,24 +248,9 @@ fn record(scene: &BuiltScene, tag: &str) -> (BTreeMap<String, BTreeSet<i64>>, BT
         }
         rec.flush_blocking().unwrap();
     }
-    let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
-    let decoder = rerun::external::re_log_encoding::DecoderApp::decode_eager(file).unwrap();
-    let mut frames: BTreeMap<String, BTreeSet<i64>> = BTreeMap::new();
-    let mut sim_time = BTreeSet::new();
-    for msg in decoder {
-        if let rerun::log::LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
-            let chunk = rerun::log::Chunk::from_arrow_msg(&arrow).unwrap();
-            let entry = frames.entry(chunk.entity_path().to_string()).or_default();
-            if let Some(col) = chunk.timelines().get(&"frame".into()) {
-                entry.extend(col.times_raw().iter().copied());
-            }
-            if let Some(col) = chunk.timelines().get(&"sim_time".into()) {
-                sim_time.extend(col.times_raw().iter().copied());
-            }
-        }
-    }
+    let index = skinsim_systems::log_read::read_recording(&path).unwrap();
     let _ = std::fs::remove_file(&path);
-    (frames, sim_time)
+    (index.frames, index.sim_time)
 }
 
 /// Implicit Euler with no forces moves every free vertex by h v exactly (the inertia term of the

@@ -38,23 +38,6 @@ fn scene(young: &str, frames: u32) -> String {
     )
 }
 
-/// The frames each entity of a recording was logged at (Rerun's own decoder).
-fn recorded_frames(path: &Path) -> std::collections::BTreeMap<String, std::collections::BTreeSet<i64>> {
-    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
-    let decoder = rerun::external::re_log_encoding::DecoderApp::decode_eager(file).unwrap();
-    let mut frames: std::collections::BTreeMap<String, std::collections::BTreeSet<i64>> = Default::default();
-    for msg in decoder {
-        if let rerun::log::LogMsg::ArrowMsg(_, arrow) = msg.unwrap() {
-            let chunk = rerun::log::Chunk::from_arrow_msg(&arrow).unwrap();
-            let entry = frames.entry(chunk.entity_path().to_string()).or_default();
-            if let Some(col) = chunk.timelines().get(&"frame".into()) {
-                entry.extend(col.times_raw().iter().copied());
-            }
-        }
-    }
-    frames
-}
-
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
@@ -132,7 +115,7 @@ fn run_writes_stats_recording_and_obj() {
     }
     // The recording, read back with Rerun's decoder: each layer's mesh, the patch's scalars and
     // every stage's timing at each of the four frames.
-    let frames = recorded_frames(&d.join("out/recording.rrd"));
+    let frames = skinsim_systems::log_read::read_recording(&d.join("out/recording.rrd")).unwrap().frames;
     let stages = ["motion", "remesh", "assemble", "solve", "writeback"].map(|s| format!("/timings/{s}"));
     let entities = ["/patches/sheet/base", "/patches/sheet/film", "/stats/sheet/energy", "/stats/sheet/residual"];
     for entity in entities.iter().map(|e| e.to_string()).chain(stages) {
