@@ -1,12 +1,11 @@
 //! Building the KCK18 parts of a scene: body animations (articulated poses, OBJ sequences) and
 //! the anchors' initial binding to the body.
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 
 use super::build::Builder;
 use super::built::{BuiltLayer, LayerMesh};
+use super::drivers::PatchContext;
 use super::schema::{AnchorSpec, PoseSpec};
 use super::SceneError;
 use crate::coupling::walk::{BodySurface, Projector, SurfacePoint};
@@ -119,21 +118,9 @@ impl Builder {
 
     /// Validates the anchors and binds each skin vertex and face barycentre to its closest
     /// body point (KCK18 section 3).
-    pub(super) fn anchors(
-        &self,
-        at: &str,
-        a: &AnchorSpec,
-        layers: &[BuiltLayer],
-        index: &HashMap<String, usize>,
-        len: f64,
-        stress: f64,
-    ) -> Result<BuiltAnchors, SceneError> {
-        let find = |field: &str, name: &str| {
-            index
-                .get(name)
-                .copied()
-                .ok_or_else(|| self.err(format!("{at}.{field}"), format!("no layer named \"{name}\" in this patch")))
-        };
+    pub(super) fn anchors(&self, at: &str, a: &AnchorSpec, cx: &PatchContext) -> Result<BuiltAnchors, SceneError> {
+        let PatchContext { layers, len, stress, .. } = *cx;
+        let find = |field: &str, name: &str| cx.find(self, format!("{at}.{field}"), name);
         let (skin, body) = (find("skin", &a.skin)?, find("body", &a.body)?);
         let (LayerMesh::Surface(skin_mesh), LayerKind::Shell) = (&layers[skin].mesh, layers[skin].kind) else {
             return Err(self.err(format!("{at}.skin"), format!("\"{}\" is not a shell layer", a.skin)));

@@ -128,11 +128,9 @@ impl Builder {
             .couplings
             .iter()
             .enumerate()
-            .map(|(ci, c)| self.coupling(&format!("{at}.couplings[{ci}]"), c, &layers, &index, len, stress))
+            .map(|(ci, c)| self.coupling(&format!("{at}.couplings[{ci}]"), c, &cx))
             .collect::<Result<_, _>>()?;
-        let anchors =
-            p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &layers, &index, len, stress));
-        let anchors = anchors.transpose()?;
+        let anchors = p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &cx)).transpose()?;
         Ok(BuiltPatch { name: p.name.clone(), solver, perturbation, layers, drivers, couplings, anchors })
     }
 }

@@ -1,12 +1,11 @@
 //! Building a patch's LK14 couplings: the critical wavelength from the scene's rule, checked
 //! against the patch and its meshes, and the kernels clustered at load (LK14 4.1).
 
-use std::collections::HashMap;
-
 use glam::DVec2;
 
 use super::build::Builder;
-use super::built::{BuiltCoupling, BuiltLayer, LayerMesh};
+use super::built::{BuiltCoupling, LayerMesh};
+use super::drivers::PatchContext;
 use super::schema::*;
 use super::SceneError;
 use crate::coupling::kernels;
@@ -16,21 +15,9 @@ use crate::model::LayerKind;
 impl Builder {
     /// Validates a coupling and clusters its kernels (LK14 4.1) on a fine grid of the upper
     /// layer's material rectangle, 10 grid cells per smallest wavelength.
-    pub(super) fn coupling(
-        &self,
-        at: &str,
-        c: &CouplingSpec,
-        layers: &[BuiltLayer],
-        index: &HashMap<String, usize>,
-        len: f64,
-        stress: f64,
-    ) -> Result<BuiltCoupling, SceneError> {
-        let find = |field: &str, name: &str| {
-            index
-                .get(name)
-                .copied()
-                .ok_or_else(|| self.err(format!("{at}.{field}"), format!("no layer named \"{name}\"")))
-        };
+    pub(super) fn coupling(&self, at: &str, c: &CouplingSpec, cx: &PatchContext) -> Result<BuiltCoupling, SceneError> {
+        let PatchContext { layers, len, stress, .. } = *cx;
+        let find = |field: &str, name: &str| cx.find(self, format!("{at}.{field}"), name);
         let (ui, li) = (find("upper", &c.upper)?, find("lower", &c.lower)?);
         let (upper, lower) = (&layers[ui], &layers[li]);
         if upper.kind != LayerKind::Shell {

@@ -25,13 +25,19 @@ pub(super) struct PatchContext<'a> {
     pub offset: DVec3,
 }
 
+impl PatchContext<'_> {
+    /// The index of the layer named `name`, or an error at `field`.
+    pub(super) fn find(&self, builder: &Builder, field: String, name: &str) -> Result<usize, SceneError> {
+        let missing = || builder.err(field, format!("no layer named \"{name}\" in this patch"));
+        self.index.get(name).copied().ok_or_else(missing)
+    }
+}
+
 impl Builder {
     /// One driver, `dat` its field path.
     pub(super) fn driver(&self, dat: &str, d: &DriverSpec, cx: &PatchContext) -> Result<BuiltDriver, SceneError> {
-        let PatchContext { scene, layers, index, len, stress, offset } = *cx;
-        let find = |field: String, name: &str| -> Result<usize, SceneError> {
-            index.get(name).copied().ok_or_else(|| self.err(field, format!("no layer named \"{name}\" in this patch")))
-        };
+        let PatchContext { scene, layers, len, stress, offset, .. } = *cx;
+        let find = |field: String, name: &str| cx.find(self, field, name);
         let keyframes_ok = |k: &Vec<(u32, f64)>, what: &str| -> Result<(), SceneError> {
             if k.is_empty() {
                 return Err(self.err(format!("{dat}.keyframes"), "needs at least one keyframe"));
