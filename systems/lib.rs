@@ -4,6 +4,7 @@
 pub mod anchors;
 pub mod assemble;
 pub mod capture;
+pub mod inspect;
 pub mod kernels;
 pub mod log;
 pub mod log_anchors;
