@@ -14,11 +14,10 @@ use super::constraints::Constraints;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::kkt::KktSystem;
-use super::newton::{
-    element_filter, line_search, step, FrameOutcome, FrameStart, ADAPTIVE_SWITCH, ARMIJO, FORCE_FLOOR, STALL,
-};
+use super::newton::{line_search, step, FrameOutcome, FrameStart, ARMIJO};
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
+use super::progress::Progress;
 use super::settings::SolverSettings;
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
@@ -45,10 +44,9 @@ pub(super) fn newton_kkt(
     let (mut lambda, mut next_lambda, mut jac) = (vec![0.0; m], vec![0.0; m], Vec::new());
     let mut rho = 0.0f64;
     let mut out = FrameOutcome::default();
-    let mut projecting = true;
-    let mut history: Vec<f64> = Vec::new();
+    let mut progress = Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n);
     let result = loop {
-        let filter = element_filter(settings.projection, projecting);
+        let filter = progress.filter();
         let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } =
             assemble(&packed.elements, pattern, &packed.state.x, filter, &mut grad, &mut values);
@@ -71,25 +69,18 @@ pub(super) fn newton_kkt(
         if !phi.is_finite() || !gnorm.is_finite() {
             break Err(SolveError::NonFinite { quantity: Quantity::State, iterations: out.iterations });
         }
-        let reference = force_scale.max(FORCE_FLOOR * energy_scale / packed.length_scale.max(f64::MIN_POSITIVE));
-        let residual = if reference > 0.0 { gnorm / reference } else { 0.0 };
+        let residual = progress.residual(gnorm, force_scale);
         let violation = c.iter().fold(0.0f64, |a, v| a.max(v.abs())) / packed.length_scale.max(f64::MIN_POSITIVE);
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;
         out.constraint_violation = violation;
-        if history.is_empty() {
+        if progress.first() {
             (out.start_energy, out.start_violation) = (phi, violation);
         }
-        if residual < ADAPTIVE_SWITCH {
-            projecting = false;
-        }
         tracing::trace!(iteration = out.iterations, residual, violation, energy = phi, ?filter, "constrained Newton");
-        history.push(residual);
-        let stalled = history.len() > STALL
-            && residual <= 1e3 * settings.tolerance
-            && residual >= 0.5 * history[history.len() - 1 - STALL];
-        if violation <= CONSTRAINT_TOLERANCE && (n == 0 || residual <= settings.tolerance || stalled) {
+        // (recorded at every iterate; converged only with the constraints met too)
+        if progress.record(residual) && violation <= CONSTRAINT_TOLERANCE {
             out.converged = true;
             break Ok(());
         }
@@ -114,7 +105,7 @@ pub(super) fn newton_kkt(
         let merit_slope = slope - rho * c_l1;
         if solved.is_err() || merit_slope.is_nan() || merit_slope >= 0.0 {
             if filter == Filter::Exact && settings.projection != Projection::None {
-                projecting = true; // H15: fall back to the projected Hessian
+                progress.projecting = true; // H15: fall back to the projected Hessian
                 out.regularized += 1;
                 continue;
             }

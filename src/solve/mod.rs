@@ -13,6 +13,7 @@ pub mod newton;
 pub mod ordering;
 pub mod packed;
 pub mod pattern;
+mod progress;
 pub mod settings;
 pub mod settle;
 

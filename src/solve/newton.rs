@@ -9,6 +9,7 @@ use super::kkt::KktSystem;
 use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
+use super::progress::{Progress, ADAPTIVE_SWITCH};
 use super::settings::{LinearSolver, SolveMode, SolverSettings};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
@@ -16,16 +17,10 @@ use crate::physics::Projection;
 /// Armijo sufficient-decrease constant.
 pub(super) const ARMIJO: f64 = 1e-4;
 const MAX_HALVINGS: u32 = 40;
-/// Adaptive projection: below this relative residual the exact Hessian is tried.
-pub(super) const ADAPTIVE_SWITCH: f64 = 1e-3;
 /// Round-off band of an energy sum, relative to its elements' energy at unit strain.
 const ROUND_OFF: f64 = 1e-13;
 /// Saddles left per frame at most.
 const MAX_ESCAPES: u32 = 4;
-/// Iterations without progress that signal the round-off floor.
-pub(super) const STALL: usize = 4;
-/// Smallest force scale, relative to the elements' forces at unit strain.
-pub(super) const FORCE_FLOOR: f64 = 1e-6;
 
 /// What happened in one frame's solve.
 #[derive(Clone, Debug, Default)]
@@ -209,14 +204,10 @@ fn newton(
     let mut dx = vec![0.0; n];
     let mut scratch = Vec::new();
     let mut out = FrameOutcome::default();
-    let mut residual;
-    // H15's adaptive policy: project until the gradient has fallen below ADAPTIVE_SWITCH, then
-    // use the exact Hessian until it fails (not positive definite, or not a descent direction).
-    let mut projecting = true;
-    let mut history: Vec<f64> = Vec::new();
+    let mut progress = Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n);
 
     loop {
-        let filter = element_filter(settings.projection, projecting);
+        let filter = progress.filter();
         let clock = std::time::Instant::now();
         let Assembly { parts, mut force_scale } =
             assemble(&packed.elements, pattern, &packed.state.x, filter, &mut grad, &mut values);
@@ -230,26 +221,14 @@ fn newton(
             let quantity = if phi.is_finite() { Quantity::Gradient } else { Quantity::Energy };
             return Err(SolveError::NonFinite { quantity, iterations: out.iterations });
         }
-        // Forces are measured against the internal forces, but never against less than those
-        // of a 1e-6 strain: an unloaded patch has only round-off forces and is converged.
-        let reference = force_scale.max(FORCE_FLOOR * energy_scale / packed.length_scale.max(f64::MIN_POSITIVE));
-        residual = if reference > 0.0 { (gnorm / reference).max(0.0) } else { 0.0 };
+        let residual = progress.residual(gnorm, force_scale);
         out.energy = phi;
         out.parts = parts;
         out.residual = residual;
-        if history.is_empty() && out.escapes == 0 {
+        if progress.first() && out.escapes == 0 {
             out.start_energy = phi;
         }
-        if residual < ADAPTIVE_SWITCH {
-            projecting = false;
-        }
-        // At the round-off floor the residual stops falling: within 1000x of the tolerance
-        // and no progress over the last STALL iterations counts as converged.
-        history.push(residual);
-        let stalled = history.len() > STALL
-            && residual <= 1e3 * settings.tolerance
-            && residual >= 0.5 * history[history.len() - 1 - STALL];
-        if n == 0 || residual <= settings.tolerance || stalled {
+        if progress.record(residual) {
             out.converged = true;
             let check = settings.stability_check && inertia.is_none() && n > 0 && out.escapes < MAX_ESCAPES;
             if check {
@@ -261,7 +240,7 @@ fn newton(
                     packed.state.x = x;
                     out.escapes += 1;
                     out.converged = false;
-                    history.clear();
+                    progress.restart();
                     continue;
                 }
             }
@@ -306,7 +285,7 @@ fn newton(
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
         if factorized.is_err() {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
-                projecting = true; // H15: fall back to the projected Hessian
+                progress.projecting = true; // H15: fall back to the projected Hessian
                 continue;
             }
             out.regularized += 1;
@@ -323,7 +302,7 @@ fn newton(
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
         if slope.is_nan() || slope >= 0.0 {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
-                projecting = true;
+                progress.projecting = true;
                 continue;
             }
             // Not a descent direction (round-off at convergence): fall back to steepest descent.
@@ -340,18 +319,6 @@ fn newton(
     }
     start.finish(packed);
     Ok(out)
-}
-
-/// The element-Hessian filter of a projection policy; `projecting`: H15's adaptive policy is in
-/// its projected phase.
-pub(super) fn element_filter(projection: Projection, projecting: bool) -> Filter {
-    match projection {
-        Projection::None => Filter::Exact,
-        Projection::Clamp => Filter::Clamp,
-        Projection::Abs => Filter::Abs,
-        Projection::Adaptive if !projecting => Filter::Exact,
-        Projection::Adaptive => Filter::Clamp,
-    }
 }
 
 /// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
