@@ -304,3 +304,135 @@ fn a_perfect_strip_still_buckles() {
     assert!(rel(p / p_cr, p_theory).abs() < 0.01);
     assert!(rel(w / l, w_theory).abs() < 0.01);
 }
+
+/// Issue 21: the strip compressed in 40 equal increments to 4x its critical strain must leave
+/// the straight state at the first increment past the critical load: no frame's end force more
+/// than 2 % above P_cr (on the straight state it grows with the strain; buckled, it stays near
+/// P_cr), and the strip buckled by the end. Before the inertia-based stability test the
+/// straight state was kept to 1.6-1.8 P_cr.
+fn fine_increments(name: &str, clamped: bool) {
+    let mut scene = load(name);
+    let d = plate_d(&scene);
+    let layer = &scene.patches[0].layers[0];
+    let (young, nu) = (layer.material.unwrap().young, layer.material.unwrap().poisson);
+    let h = layer.thickness.unwrap();
+    let LayerMesh::Surface(mesh) = &layer.mesh else { unreachable!() };
+    let l_full = skinsim::mesh::bounds(&mesh.rest).1.x - skinsim::mesh::bounds(&mesh.rest).0.x;
+    let l = if clamped { l_full - 0.5e-3 } else { l_full };
+    let p_cr = if clamped { 4.0 } else { 1.0 } * std::f64::consts::PI.powi(2) * d / (l * l);
+    // Straight state: P = E h eps / (1 - nu^2) (plane strain), so eps_cr = P_cr (1 - nu^2) / (E h).
+    let eps_cr = p_cr * (1.0 - nu * nu) / (young * h);
+    let frames = 40;
+    for drv in &mut scene.patches[0].drivers {
+        if let BuiltDriver::Compress { keyframes, .. } = drv {
+            *keyframes = vec![(1, 0.1 * eps_cr * l_full / l), (frames, 4.0 * eps_cr * l_full / l)];
+        }
+    }
+    scene.scene.frames = frames;
+    let mut sim = skinsim_systems::Simulation::new(&scene);
+    let mut worst: f64 = 0.0;
+    let mut deflection = 0.0;
+    for frame in 1..=frames {
+        let stats = sim.step();
+        assert!(stats.patches[0].converged, "{name} frame {frame} did not converge: {:?}", stats.patches[0]);
+        let (p, w, _) = strip_measures(&mut sim);
+        println!(
+            "{name} frame {frame}: eps/eps_cr {:.2}, P/Pcr {:.4}, w/L {:.2e}",
+            0.1 * frame as f64,
+            p / p_cr,
+            w / l
+        );
+        worst = worst.max(p / p_cr);
+        deflection = w / l;
+    }
+    assert!(worst < 1.02, "{name}: the straight state was kept to {worst:.3} P_cr");
+    assert!(deflection > 1e-4, "{name}: not buckled at 4 eps_cr (w/L {deflection:.2e})");
+}
+
+#[test]
+fn fine_increments_buckle_at_the_critical_load_pinned() {
+    fine_increments("validation/euler_pinned.ron", false);
+}
+
+#[test]
+fn fine_increments_buckle_at_the_critical_load_clamped() {
+    fine_increments("validation/euler_clamped.ron", true);
+}
+
+/// The strip's exact Hessian on its straight state at `ratio` x the critical strain (stability
+/// check off, no imperfection: it stays straight), with its pattern.
+fn straight_strip_hessian(ratio: f64) -> (skinsim::solve::pattern::Pattern, Vec<f64>) {
+    let mut scene = load("validation/euler_pinned.ron");
+    scene.patches[0].perturbation = None;
+    scene.patches[0].solver.stability_check = false;
+    let layer = &scene.patches[0].layers[0];
+    let h = layer.thickness.unwrap();
+    let LayerMesh::Surface(mesh) = &layer.mesh else { unreachable!() };
+    let l = skinsim::mesh::bounds(&mesh.rest).1.x - skinsim::mesh::bounds(&mesh.rest).0.x;
+    let eps_cr = std::f64::consts::PI.powi(2) * h * h / (12.0 * l * l);
+    for drv in &mut scene.patches[0].drivers {
+        if let BuiltDriver::Compress { keyframes, .. } = drv {
+            *keyframes = vec![(1, ratio * eps_cr)];
+        }
+    }
+    let mut sim = skinsim_systems::Simulation::new(&scene);
+    assert!(sim.step().patches[0].converged);
+    let mut q = sim.world.query::<&PackedPatch>();
+    let packed = q.single(&sim.world).unwrap();
+    let s = &packed.state;
+    let pattern = skinsim::solve::pattern::Pattern::build(&s.x, &s.fixed, &s.tie, &packed.elements);
+    let (mut grad, mut values) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+    skinsim::solve::eval::assemble(
+        &packed.elements,
+        &pattern,
+        &s.x,
+        skinsim::physics::psd::Filter::Exact,
+        &mut grad,
+        &mut values,
+    );
+    (pattern, values)
+}
+
+/// The dense spectrum (nondecreasing) and the lowest eigenvector of a pattern's matrix.
+fn dense_spectrum(p: &skinsim::solve::pattern::Pattern, values: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut a = faer::Mat::<f64>::zeros(p.n, p.n);
+    for c in 0..p.n {
+        let span = p.col_ptr[c] as usize..p.col_ptr[c + 1] as usize;
+        for (&r, &v) in p.row_idx[span.clone()].iter().zip(&values[span]) {
+            a[(r as usize, c)] = v;
+            a[(c, r as usize)] = v;
+        }
+    }
+    let e = a.self_adjoint_eigen(faer::Side::Lower).unwrap();
+    ((0..p.n).map(|i| e.S()[i]).collect(), (0..p.n).map(|i| e.U()[(i, 0)]).collect())
+}
+
+/// Issue 21: the inertia test's verdict, curvature and direction against a dense eigen-solve of
+/// the strip's exact Hessian: stable below the critical load, one eigenvalue barely below zero
+/// just past it (about 1e-12 of the mean diagonal), two past the second critical load.
+#[test]
+fn the_inertia_test_agrees_with_a_dense_eigen_solve() {
+    use skinsim::solve::stability::{test, Verdict};
+    for (ratio, expected) in [(0.9, 0), (1.02, 1), (4.2, 2)] {
+        let (pattern, values) = straight_strip_hessian(ratio);
+        let (spectrum, lowest) = dense_spectrum(&pattern, &values);
+        let negative = spectrum.iter().filter(|l| **l < 0.0).count();
+        let mean_diag = pattern.diag.iter().map(|&d| values[d as usize].abs()).sum::<f64>() / pattern.n as f64;
+        println!(
+            "{ratio} eps_cr: {negative} negative, lowest {:.3e} ({:.2e} of the mean diagonal)",
+            spectrum[0],
+            spectrum[0] / mean_diag
+        );
+        assert_eq!(negative, expected, "the dense spectrum at {ratio} eps_cr");
+        let mut chol = skinsim::solve::linear::CholeskySolver::analyze(&pattern);
+        match test(&pattern, &mut chol, &values).expect("an LDL^T") {
+            Verdict::Stable => assert_eq!(expected, 0, "{ratio} eps_cr: called stable"),
+            Verdict::Unstable { negative: k, curvature, direction, .. } => {
+                assert_eq!(k, expected, "{ratio} eps_cr: inertia");
+                assert!((curvature - spectrum[0]).abs() < 1e-3 * spectrum[0].abs(), "{curvature} vs {}", spectrum[0]);
+                let overlap: f64 = direction.iter().zip(&lowest).map(|(a, b)| a * b).sum();
+                assert!(overlap.abs() > 0.999, "{ratio} eps_cr: direction overlap {overlap}");
+            }
+        }
+    }
+}

@@ -18,7 +18,7 @@ use super::newton::{line_search, step, FrameOutcome, FrameStart, ARMIJO};
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::progress::Progress;
-use super::settings::SolverSettings;
+use super::settings::{SolveMode, SolverSettings};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
 
@@ -33,7 +33,7 @@ pub(super) fn newton_kkt(
     dt: f64,
 ) -> Result<FrameOutcome, SolveError> {
     let (n, m) = (pattern.n, packed.constraints.rows());
-    let start = FrameStart::begin(packed, settings.mode, dt);
+    let start = FrameStart::begin(packed, settings, dt);
     let inertia = start.inertia();
     let constraints = std::mem::take(&mut packed.constraints);
     let violation_l1 =
@@ -95,6 +95,13 @@ pub(super) fn newton_kkt(
         if solved.is_ok() {
             rho = rho.max(2.0 * next_lambda.iter().fold(0.0f64, |a, l| a.max(l.abs())));
         }
+        if settings.mode == SolveMode::LinearizedEuler && solved.is_ok() {
+            // LK14 eq. 5.2 with the kernels linearized too: the full SQP step.
+            let x0 = packed.state.x.clone();
+            step(&mut packed.state.x, &x0, &pattern.dof, &dx, 1.0);
+            (out.iterations, out.converged) = (1, true);
+            break Ok(());
+        }
         let c_l1: f64 = c.iter().map(|v| v.abs()).sum();
         // The step is a descent direction of the constrained problem, but where H is negative
         // off the null space of J the objective may rise along it: then the penalty must
@@ -132,7 +139,8 @@ pub(super) fn newton_kkt(
             settings.tolerance,
             &merit,
             &mut out,
-        );
+        )
+        .is_some();
         if !accepted {
             // A rejected step at the round-off floor still has to satisfy the constraints.
             out.converged &= violation <= CONSTRAINT_TOLERANCE;

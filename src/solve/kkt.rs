@@ -21,16 +21,14 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::solvers::{Llt, Solve};
-use faer::sparse::linalg::cholesky::supernodal::SupernodalLdltRef;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymbolicCholeskyRaw,
-    SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
 
 use super::constraints::Constraints;
-use super::linear::{symmetric_product_into, CholeskySolver, NotPositiveDefinite};
+use super::linear::{negative_pivots, symmetric_product_into, CholeskySolver, NotPositiveDefinite};
 use super::pattern::{Pattern, NONE};
 use super::settings::KktMethod;
 
@@ -72,11 +70,13 @@ pub struct KktSystem {
     /// Whether the last failed factorization had more negative pivots than constraints (true
     /// negative curvature) rather than fewer (round-off of the unpivoted LDL^T).
     curvature: bool,
+    /// The negative pivots of the last LDL^T (None after a breakdown, or with Schur).
+    negative: Option<usize>,
 }
 
 enum Solver {
     Ldlt { symbolic: SymbolicCholesky<u32>, l_values: Vec<f64>, mem: MemBuffer, par: Par },
-    Schur { chol: CholeskySolver, jt: Vec<Vec<(u32, f64)>>, y: Mat<f64>, llt: Option<Llt<f64>>, shifted: Vec<f64> },
+    Schur { chol: Box<CholeskySolver>, jt: Vec<Vec<(u32, f64)>>, y: Mat<f64>, llt: Option<Llt<f64>>, shifted: Vec<f64> },
 }
 
 impl KktSystem {
@@ -146,7 +146,7 @@ impl KktSystem {
                 Solver::Ldlt { symbolic, l_values, mem: MemBuffer::new(req), par }
             }
             KktMethod::Schur => Solver::Schur {
-                chol: CholeskySolver::analyze(h),
+                chol: Box::new(CholeskySolver::analyze(h)),
                 jt: vec![Vec::new(); m],
                 y: Mat::zeros(n, m),
                 llt: None,
@@ -168,7 +168,21 @@ impl KktSystem {
             last_shift: 0.0,
             shift: 0.0,
             curvature: true,
+            negative: None,
         }
+    }
+
+    /// The stability verdict at a constrained equilibrium (the LDL^T method): how many negative
+    /// curvatures H has on the null space of J. By Sylvester's law the KKT matrix has m + that
+    /// many negative eigenvalues (J of full rank), so it is the unshifted LDL^T's negative pivot
+    /// count less m. None when the LDL^T breaks down or has fewer than m negative pivots
+    /// (round-off), and with Schur. Replaces the last factorization.
+    pub fn unstable_directions(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64]) -> Option<usize> {
+        let mean_diag = h.diag.iter().map(|&d| h_values[d as usize].abs()).sum::<f64>() / self.n.max(1) as f64;
+        self.load(h, h_values, j_values, mean_diag, 0.0);
+        self.negative = None;
+        let _ = self.factorize(h);
+        self.negative.and_then(|k| k.checked_sub(self.m))
     }
 
     /// One SQP step: (dx, lambda) from H, J, g and c, with the smallest shift mu (of the
@@ -275,10 +289,12 @@ impl KktSystem {
                 for &k in &self.diag[n..] {
                     self.values[k as usize] = 0.0;
                 }
+                self.negative = None;
                 if !ok || !l_values.iter().all(|v| v.is_finite()) {
                     return Err(NotPositiveDefinite);
                 }
                 let negative = negative_pivots(symbolic, l_values);
+                self.negative = Some(negative);
                 tracing::trace!(negative, m, "KKT inertia");
                 self.curvature = negative > m;
                 if negative != m {
@@ -377,31 +393,6 @@ impl KktSystem {
     }
 }
 
-/// The number of negative entries of D in an LDL^T factor: the KKT matrix's negative inertia.
-fn negative_pivots(symbolic: &SymbolicCholesky<u32>, l_values: &[f64]) -> usize {
-    match symbolic.raw() {
-        SymbolicCholeskyRaw::Simplicial(s) => {
-            let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
-            (0..s.nrows())
-                .filter(|&j| {
-                    let span = col_ptr[j] as usize..col_ptr[j + 1] as usize;
-                    let at = row_idx[span.clone()].iter().position(|&r| r as usize == j);
-                    at.is_some_and(|p| l_values[span.start + p] < 0.0)
-                })
-                .count()
-        }
-        SymbolicCholeskyRaw::Supernodal(s) => {
-            let ldlt = SupernodalLdltRef::new(s, l_values);
-            (0..s.n_supernodes())
-                .map(|k| {
-                    let node = ldlt.supernode(k);
-                    node.val().diagonal().column_vector().iter().filter(|d| **d < 0.0).count()
-                })
-                .sum()
-        }
-    }
-}
-
 /// The scaled Jacobian by row (row r -> (DOF column, value)), read from the loaded KKT values.
 fn fill_rows(jt: &mut [Vec<(u32, f64)>], col_ptr: &[u32], row_idx: &[u32], values: &[f64], n: usize) {
     jt.iter_mut().for_each(|r| r.clear());
@@ -475,8 +466,63 @@ mod tests {
 }
 
 #[cfg(test)]
+mod verdict_tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::solve::constraints::KernelRows;
+    use crate::solve::{Elements, SpringElem};
+
+    /// Issue 21: the KKT verdict against a dense eigen-solve of the reduced Hessian Z^T H Z.
+    /// Two vertices joined by a spring (all 6 DOFs coupled); a kernel holds vertex 0, so the null
+    /// space of J is vertex 1's DOFs. H is a dense symmetric matrix whose reduced block is shifted
+    /// to put its lowest eigenvalue at `target` (definite, barely indefinite, indefinite), while
+    /// the held block stays indefinite (which alone must not count).
+    #[test]
+    fn kkt_verdict_counts_negative_curvature_on_the_null_space() {
+        let x = [DVec3::ZERO, DVec3::X];
+        let elements = Elements { springs: vec![SpringElem { v: [0, 1], k: 1.0 }], ..Default::default() };
+        let p = Pattern::build(&x, &[[false; 3]; 2], &[], &elements);
+        let c = Constraints::new(vec![KernelRows { upper: vec![(0, 1.0)], lower: vec![], lower_moves: false }], &x);
+        let mut jac = Vec::new();
+        c.jacobian(&x, &mut jac);
+        let base = Mat::from_fn(6, 6, |i, j| {
+            let (a, b) = (i.min(j) as f64, i.max(j) as f64);
+            (1.3 * a + 0.7 * b + 0.4).sin() + if i == j { 1.0 } else { 0.0 }
+        });
+        let reduced_lowest = |m: &Mat<f64>| {
+            let r = Mat::from_fn(3, 3, |i, j| m[(i + 3, j + 3)]);
+            r.self_adjoint_eigenvalues(Side::Lower).unwrap()
+        };
+        let held_lowest = Mat::from_fn(3, 3, |i, j| base[(i, j)]).self_adjoint_eigenvalues(Side::Lower).unwrap()[0];
+        for (target, expected) in [(0.5, 0), (-1e-9, 1), (-0.3, 1), (-40.0, 3)] {
+            let mut dense = base.clone();
+            let shift = reduced_lowest(&base)[0] - target;
+            for i in 3..6 {
+                dense[(i, i)] -= shift;
+            }
+            // The held block made indefinite too: it must not count.
+            for i in 0..3 {
+                dense[(i, i)] -= held_lowest + 0.5;
+            }
+            let spectrum = reduced_lowest(&dense);
+            assert_eq!(spectrum.iter().filter(|l| **l < 0.0).count(), expected, "{spectrum:?}");
+            let mut values = vec![0.0; p.nnz()];
+            for col in 0..p.n {
+                for k in p.col_ptr[col] as usize..p.col_ptr[col + 1] as usize {
+                    values[k] = dense[(p.row_idx[k] as usize, col)];
+                }
+            }
+            let mut kkt = KktSystem::build(&p, &c, KktMethod::Ldlt);
+            assert_eq!(kkt.unstable_directions(&p, &values, &jac), Some(expected), "target {target}");
+        }
+    }
+}
+
+#[cfg(test)]
 mod inertia_tests {
     use super::*;
+    use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
 
     /// The inertia read from faer's factor matches the known spectrum of a shifted 2D Laplacian
     /// (large enough for the supernodal factorization): eigenvalues 4 - 2 cos(i pi / (k + 1)) -

@@ -4,7 +4,8 @@
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky, SymbolicCholeskyRaw,
+    SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -26,7 +27,12 @@ pub struct CholeskySolver {
     mem: MemBuffer,
     par: Par,
     factored: bool,
-    /// Numeric factorizations so far.
+    /// The LDL^T of the last `inertia` call (empty until then), and the same factor with |D|:
+    /// the stability test and its eigen-solver's preconditioner.
+    ldl: Vec<f64>,
+    ldl_abs: Vec<f64>,
+    pivots: Vec<usize>,
+    /// Numeric factorizations so far (LL^T and LDL^T).
     pub factorizations: u64,
 }
 
@@ -49,10 +55,21 @@ impl CholeskySolver {
             .expect("symbolic Cholesky of a valid pattern");
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+            symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
         let l_values = vec![0.0; symbolic.len_val()];
-        CholeskySolver { symbolic, l_values, mem: MemBuffer::new(req), par, factored: false, factorizations: 0 }
+        CholeskySolver {
+            symbolic,
+            l_values,
+            mem: MemBuffer::new(req),
+            par,
+            factored: false,
+            ldl: Vec::new(),
+            ldl_abs: Vec::new(),
+            pivots: Vec::new(),
+            factorizations: 0,
+        }
     }
 
     /// Numeric factorization of the pattern's matrix with `values`.
@@ -99,6 +116,62 @@ impl CholeskySolver {
         llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut mem));
     }
 
+    /// The inertia of the pattern's matrix with `values`: the number of its negative eigenvalues,
+    /// read from the signs of D in its LDL^T (Sylvester's law of inertia: the count is the same
+    /// for any congruence, so for any ordering). None when the unpivoted LDL^T breaks down (a
+    /// zero pivot). Keeps the factor for `solve_abs`; the Cholesky factor is left as it was.
+    pub fn inertia(&mut self, p: &Pattern, values: &[f64]) -> Option<usize> {
+        let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
+        let a = SparseColMatRef::new(sym, values);
+        self.ldl.resize(self.symbolic.len_val(), 0.0);
+        self.factorizations += 1;
+        let res = self.symbolic.factorize_numeric_ldlt(
+            &mut self.ldl,
+            a,
+            Side::Lower,
+            Default::default(),
+            self.par,
+            MemStack::new(&mut self.mem),
+            Default::default(),
+        );
+        if res.is_err() || !self.ldl.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        if self.pivots.is_empty() {
+            self.pivots = pivot_positions(&self.symbolic);
+        }
+        self.ldl_abs.clone_from(&self.ldl);
+        let mut negative = 0;
+        for &k in &self.pivots {
+            if self.ldl[k] == 0.0 {
+                return None;
+            }
+            negative += usize::from(self.ldl[k] < 0.0);
+            self.ldl_abs[k] = self.ldl[k].abs();
+        }
+        Some(negative)
+    }
+
+    /// Solves A x = rhs in place with the last `inertia` factor (A's LDL^T).
+    pub fn solve_ldl(&mut self, rhs: &mut [f64]) {
+        assert!(!self.ldl.is_empty(), "solve_ldl after a successful inertia");
+        let n = rhs.len();
+        let ldlt = LdltRef::new(&self.symbolic, &self.ldl);
+        let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        ldlt.solve_in_place_with_conj(Conj::No, mat, self.par, MemStack::new(&mut self.mem));
+    }
+
+    /// Solves (P^T L |D| L^T P) x = rhs in place with the last `inertia` factor: a symmetric
+    /// positive definite approximation of |H|^-1 (the eigen-solver's preconditioner; for a
+    /// definite H it is H^-1 itself).
+    pub fn solve_abs(&mut self, rhs: &mut [f64]) {
+        assert!(!self.ldl_abs.is_empty(), "solve_abs after a successful inertia");
+        let n = rhs.len();
+        let ldlt = LdltRef::new(&self.symbolic, &self.ldl_abs);
+        let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        ldlt.solve_in_place_with_conj(Conj::No, mat, self.par, MemStack::new(&mut self.mem));
+    }
+
     /// Whether the last factorization succeeded (its factor can precondition CG).
     pub fn is_factored(&self) -> bool {
         self.factored
@@ -112,6 +185,38 @@ impl CholeskySolver {
     pub fn is_supernodal(&self) -> bool {
         matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
     }
+}
+
+/// Where each entry of D sits in an LDL^T factor's values (faer stores D on L's diagonal).
+pub(super) fn pivot_positions(symbolic: &SymbolicCholesky<u32>) -> Vec<usize> {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let (col_ptr, row_idx) = (s.col_ptr(), s.row_idx());
+            (0..s.nrows())
+                .filter_map(|j| {
+                    let span = col_ptr[j] as usize..col_ptr[j + 1] as usize;
+                    row_idx[span.clone()].iter().position(|&r| r as usize == j).map(|p| span.start + p)
+                })
+                .collect()
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            // Supernode k: a column-major block of (its columns + its off-block rows) x its
+            // columns from col_ptr_for_val[k]; D on the block's diagonal.
+            let (begin, end, val) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_val());
+            (0..s.n_supernodes())
+                .flat_map(|k| {
+                    let cols = (end[k] - begin[k]) as usize;
+                    let rows = (val[k + 1] - val[k]) as usize / cols.max(1);
+                    (0..cols).map(move |j| val[k] as usize + j * rows + j)
+                })
+                .collect()
+        }
+    }
+}
+
+/// The number of negative entries of D in an LDL^T factor (its matrix's negative inertia).
+pub(super) fn negative_pivots(symbolic: &SymbolicCholesky<u32>, l_values: &[f64]) -> usize {
+    pivot_positions(symbolic).iter().filter(|&&k| l_values[k] < 0.0).count()
 }
 
 /// y = A x for the symmetric matrix whose lower triangle is stored as CSC (col_ptr, row_idx).

@@ -4,6 +4,7 @@
 
 mod constrained;
 pub mod constraints;
+pub mod eigen;
 pub mod elements;
 pub mod error;
 pub mod eval;
@@ -16,9 +17,10 @@ pub mod pattern;
 mod progress;
 pub mod settings;
 pub mod settle;
+pub mod stability;
 
 pub use elements::{AnchorElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
 pub use error::SolveError;
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};
 pub use packed::{PackedPatch, PackedState, SolverCache};
-pub use settings::{KktMethod, LinearSolver, SolveMode, SolverSettings};
+pub use settings::{KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};

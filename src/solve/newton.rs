@@ -10,7 +10,8 @@ use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::progress::{Progress, ADAPTIVE_SWITCH};
-use super::settings::{LinearSolver, SolveMode, SolverSettings};
+use super::settings::{LinearSolver, SolveMode, SolverSettings, StabilityTest};
+use super::stability::{self, Verdict};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
 
@@ -91,9 +92,9 @@ pub(super) struct FrameStart {
 
 impl FrameStart {
     /// Syncs ties and, when dynamic, moves the state to the predictor.
-    pub(super) fn begin(packed: &mut PackedPatch, mode: SolveMode, dt: f64) -> FrameStart {
+    pub(super) fn begin(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> FrameStart {
         packed.state.sync_ties();
-        let dynamic = mode == SolveMode::ImplicitEuler;
+        let dynamic = settings.mode.is_dynamic();
         let x_n = packed.state.x.clone();
         let x_hat = predictor(packed, dynamic, dt);
         if dynamic {
@@ -194,7 +195,7 @@ fn newton(
     dt: f64,
 ) -> Result<FrameOutcome, SolveError> {
     let n = pattern.n;
-    let start = FrameStart::begin(packed, settings.mode, dt);
+    let start = FrameStart::begin(packed, settings, dt);
     let inertia = start.inertia();
     let total = |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
 
@@ -236,12 +237,35 @@ fn newton(
                     assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut grad, &mut values);
                 }
                 let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
-                if let Some(x) = leave_saddle(packed, pattern, chol, &values, phi, energy_scale, &energy_at) {
-                    packed.state.x = x;
-                    out.escapes += 1;
-                    out.converged = false;
-                    progress.restart();
-                    continue;
+                let settle = out.escapes > 0 && out.iterations < settings.max_iterations;
+                let left = match settings.stability_test {
+                    StabilityTest::Inertia => {
+                        leave_unstable(packed, pattern, chol, &values, &grad, phi, energy_scale, settle, &energy_at)
+                    }
+                    StabilityTest::ShiftedCholesky => {
+                        leave_saddle(packed, pattern, chol, &values, phi, energy_scale, &energy_at)
+                            .map_or(Leave::Stay, Leave::Escape)
+                    }
+                };
+                match left {
+                    Leave::Stay => {}
+                    Leave::Escape(x) => {
+                        packed.state.x = x;
+                        out.escapes += 1;
+                        out.converged = false;
+                        progress.restart();
+                        continue;
+                    }
+                    Leave::Settle(dx) => {
+                        out.converged = false;
+                        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+                        let (tol, total) = (settings.tolerance, &total);
+                        if line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, tol, total, &mut out)
+                            .is_some()
+                        {
+                            continue;
+                        }
+                    }
                 }
             }
             break;
@@ -251,7 +275,8 @@ fn newton(
         }
         // Search direction: H dx = -g. Krylov mode first tries CG preconditioned by the last
         // factor (inexact Newton: relative tolerance min(0.1, sqrt(residual))).
-        if let (LinearSolver::Krylov { max_iterations }, true) = (settings.linear, chol.is_factored()) {
+        let krylov = (settings.linear, chol.is_factored() && settings.mode != SolveMode::LinearizedEuler);
+        if let (LinearSolver::Krylov { max_iterations }, true) = krylov {
             let clock = std::time::Instant::now();
             let b: Vec<f64> = grad.iter().map(|g| -g).collect();
             let tol = 0.1f64.min(residual.sqrt()) * gnorm;
@@ -261,7 +286,7 @@ fn newton(
             if cg.is_ok() {
                 let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
                 if slope < 0.0 {
-                    if line_search(
+                    match line_search(
                         packed,
                         pattern,
                         &dx,
@@ -273,9 +298,9 @@ fn newton(
                         &total,
                         &mut out,
                     ) {
-                        continue;
+                        Some(_) => continue,
+                        None => break,
                     }
-                    break;
                 }
             }
         }
@@ -311,18 +336,36 @@ fn newton(
                 *d = -g * scale;
             }
         }
-        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        if !line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out)
-        {
+        if settings.mode == SolveMode::LinearizedEuler {
+            let x0 = packed.state.x.clone();
+            step(&mut packed.state.x, &x0, &pattern.dof, &dx, 1.0);
+            (out.iterations, out.converged) = (1, true);
             break;
+        }
+        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+        match line_search(
+            packed,
+            pattern,
+            &dx,
+            slope,
+            phi,
+            residual,
+            energy_scale,
+            settings.tolerance,
+            &total,
+            &mut out,
+        ) {
+            Some(_) => {}
+            None => break,
         }
     }
     start.finish(packed);
     Ok(out)
 }
 
-/// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
-/// when no step is accepted (the state is restored; near round-off it counts as converged).
+/// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns the
+/// step length taken, None when no step is accepted (the state is restored; near round-off it
+/// counts as converged).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn line_search(
     packed: &mut PackedPatch,
@@ -335,7 +378,7 @@ pub(super) fn line_search(
     tolerance: f64,
     total: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
     out: &mut FrameOutcome,
-) -> bool {
+) -> Option<f64> {
     let clock = std::time::Instant::now();
     let x0 = packed.state.x.clone();
     let mut alpha = 1.0;
@@ -365,7 +408,11 @@ pub(super) fn line_search(
             out.converged = true;
         }
     }
-    accepted
+    accepted.then_some(alpha)
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
 }
 
 /// Preconditioned conjugate gradients on H x = b (x starts at 0), M^-1 = the factor in `chol`.
@@ -409,8 +456,61 @@ fn pcg(
     Err(max_iterations)
 }
 
-/// At a converged point: if the exact Hessian `h` is indefinite, returns a lower-energy state
-/// along its most negative curvature direction (shifted inverse iteration with a Cholesky of
+/// What the stability check does at a converged point.
+enum Leave {
+    /// Accept it.
+    Stay,
+    /// Leave an unstable equilibrium for this lower-energy state.
+    Escape(Vec<DVec3>),
+    /// Not yet converged: take this exact Newton step.
+    Settle(Vec<f64>),
+}
+
+/// After leaving an unstable equilibrium: the largest exact Newton step (of the patch size) at
+/// convergence. Near a bifurcation the buckling mode's force is far below the membrane force
+/// scale, so the residual test alone stops on the way to the buckled state (the Euler strip
+/// just past its critical load: at 65 % of the amplitude, 1.06 P_cr).
+const SETTLED_STEP: f64 = 1e-7;
+
+/// At a converged point: the inertia test of the exact Hessian `h` (`stability.rs`); when
+/// unstable, a lower-energy state along its most negative curvature. With `settle` (a saddle
+/// was left this frame), a stable point whose exact Newton step -H^-1 g (from the same LDL^T)
+/// is above SETTLED_STEP is not converged yet. Where the LDL^T breaks down (a zero pivot), the
+/// shifted-Cholesky test decides.
+#[allow(clippy::too_many_arguments)]
+fn leave_unstable(
+    packed: &PackedPatch,
+    pattern: &Pattern,
+    chol: &mut CholeskySolver,
+    h: &[f64],
+    grad: &[f64],
+    phi: f64,
+    energy_scale: f64,
+    settle: bool,
+    energy_at: &dyn Fn(&[DVec3]) -> f64,
+) -> Leave {
+    match stability::test(pattern, chol, h) {
+        Some(Verdict::Stable) if settle => {
+            let mut dx: Vec<f64> = grad.iter().map(|g| -g).collect();
+            chol.solve_ldl(&mut dx);
+            if max_abs(&dx) > SETTLED_STEP * packed.length_scale {
+                Leave::Settle(dx)
+            } else {
+                Leave::Stay
+            }
+        }
+        Some(Verdict::Stable) => Leave::Stay,
+        Some(Verdict::Unstable { direction, .. }) => {
+            stability::escape(&packed.state.x, &pattern.dof, &direction, phi, packed.length_scale, energy_at)
+                .map_or(Leave::Stay, Leave::Escape)
+        }
+        None => leave_saddle(packed, pattern, chol, h, phi, energy_scale, energy_at).map_or(Leave::Stay, Leave::Escape),
+    }
+}
+
+/// The shifted-Cholesky test (`StabilityTest::ShiftedCholesky`): if the exact Hessian `h` is
+/// indefinite, returns a lower-energy state along its most negative curvature direction
+/// (shifted inverse iteration with a Cholesky of
 /// H + sigma I, then a search over the step length and sign); None at a stable equilibrium.
 fn leave_saddle(
     packed: &PackedPatch,

@@ -18,6 +18,7 @@ pub struct SolverSettings {
     /// Quasistatic mode: at convergence, test the exact Hessian; at an unstable equilibrium
     /// (a saddle: the flat state past the buckling load) leave it along negative curvature.
     pub stability_check: bool,
+    pub stability_test: StabilityTest,
     pub linear: LinearSolver,
     pub kkt: KktMethod,
 }
@@ -30,6 +31,7 @@ impl Default for SolverSettings {
             max_iterations: 50,
             projection: Projection::default(),
             stability_check: true,
+            stability_test: StabilityTest::default(),
             linear: LinearSolver::Direct,
             kkt: KktMethod::default(),
         }
@@ -41,8 +43,34 @@ pub enum SolveMode {
     /// Equilibrium at every frame (LK14 eq. 5.1, H15 chapter 5).
     #[default]
     Quasistatic,
-    /// Implicit Euler in optimization form (LK14 eq. 5.2), time step = frame_time.
+    /// Implicit Euler in optimization form (LK14 eq. 5.2), time step = frame_time: Newton on
+    /// the incremental potential to the tolerance.
     ImplicitEuler,
+    /// LK14's own velocity-based scheme (eq. 5.2 as ARCSim solves it): one linearized implicit
+    /// Euler step per frame, the full Newton step of the incremental potential from the
+    /// predictor x + h v (one factorization, no line search). Converged by construction: the
+    /// residual reported is the one the step started from.
+    LinearizedEuler,
+}
+
+impl SolveMode {
+    /// Whether the frame is a time step (an inertia term and velocities).
+    pub fn is_dynamic(self) -> bool {
+        self != SolveMode::Quasistatic
+    }
+}
+
+/// How the stability check tests an equilibrium and finds the way off an unstable one.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum StabilityTest {
+    /// The inertia of one LDL^T of the exact Hessian (exact: no curvature threshold); the
+    /// escape along the most negative curvature from LOBPCG preconditioned by that factor.
+    #[default]
+    Inertia,
+    /// The test before issue 21, kept for comparison: a Cholesky of H, then Cholesky
+    /// factorizations of H + sigma I (sigma x4 from 1e-6 mean |diag|) and inverse iteration;
+    /// misses curvatures above -1e-9 mean |diag| (just past a critical load).
+    ShiftedCholesky,
 }
 
 /// How Newton solves H dx = -g.

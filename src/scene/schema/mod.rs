@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::physics::Projection;
-use crate::solve::{KktMethod, LinearSolver, SolveMode, SolverSettings};
+use crate::solve::{KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};
 
 mod coupling;
 mod driver;
@@ -134,6 +134,9 @@ pub struct SolverSpec {
     /// (a saddle: the flat state past the buckling load) leave it along negative curvature.
     #[serde(default = "default_true")]
     pub stability_check: bool,
+    /// How the stability check tests an equilibrium (`Inertia`, or the older `ShiftedCholesky`).
+    #[serde(default)]
+    pub stability_test: StabilityTest,
     /// How Newton solves H dx = -g.
     #[serde(default)]
     pub linear: LinearSolver,
@@ -159,6 +162,7 @@ impl Default for SolverSpec {
             projection: s.projection,
             perturbation: None,
             stability_check: s.stability_check,
+            stability_test: s.stability_test,
             linear: s.linear,
             kkt: s.kkt,
         }
@@ -174,6 +178,7 @@ impl SolverSpec {
             max_iterations: self.max_iterations,
             projection: self.projection,
             stability_check: self.stability_check,
+            stability_test: self.stability_test,
             linear: self.linear,
             kkt: self.kkt,
         }

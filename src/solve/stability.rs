@@ -1,0 +1,135 @@
+//! The stability test at a converged equilibrium (PHYSICS.md 2; H15 5.2's saddle check): an
+//! equilibrium is stable exactly when the exact Hessian is positive definite. One LDL^T of H
+//! gives its inertia (Sylvester's law: the number of negative pivots is the number of negative
+//! eigenvalues), so the verdict needs no threshold on a curvature and fires just past a
+//! critical load, where the unstable eigenvalue is ~1e-11 of the mean diagonal. When unstable,
+//! the most negative curvature direction (the fastest-growing mode) comes from LOBPCG
+//! preconditioned by the same factor with |D| (no further factorization). Where that converges
+//! slowly (many unstable modes: a buckled substrate), LOBPCG goes on preconditioned by the
+//! Cholesky factor of H + sigma I, sigma sized from its first estimate of the curvature.
+
+use glam::DVec3;
+
+use super::eigen;
+use super::linear::{symmetric_product_into, CholeskySolver};
+use super::pattern::Pattern;
+
+/// LOBPCG: block size at most, iterations at most with each preconditioner, and the relative
+/// residual it stops at.
+const BLOCK: usize = 4;
+const FIRST_ITERATIONS: u32 = 15;
+const MAX_ITERATIONS: u32 = 40;
+const TOLERANCE: f64 = 1e-3;
+/// The shifted preconditioner: sigma = SHIFT x |first curvature estimate|, x4 per failed try.
+const SHIFT: f64 = 2.0;
+const SHIFT_TRIES: u32 = 8;
+/// A curvature below this fraction of the largest diagonal is round-off (a semidefinite H).
+const ROUND_OFF_CURVATURE: f64 = 1e-13;
+/// The escape search: first step (of the patch size), growth per try, tries per sign.
+const FIRST_STEP: f64 = 1e-5;
+const GROWTH: f64 = 3.0;
+const TRIES: u32 = 10;
+/// An energy decrease counts when larger than this fraction of the energy (its round-off).
+const ENERGY_ROUND_OFF: f64 = 1e-12;
+
+/// The verdict on an equilibrium.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Verdict {
+    /// H positive (semi)definite.
+    Stable,
+    /// `negative` eigenvalues below zero; the most negative is `curvature` (per unit
+    /// displacement squared) along `direction` (unit length, over the free DOFs).
+    Unstable { negative: usize, curvature: f64, direction: Vec<f64>, eigen_iterations: u32 },
+}
+
+/// Tests the exact Hessian `h` (values on `pattern`); None when its LDL^T breaks down (a zero
+/// pivot: the caller decides).
+pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<Verdict> {
+    let negative = chol.inertia(pattern, h)?;
+    if negative == 0 {
+        return Some(Verdict::Stable);
+    }
+    let n = pattern.n;
+    let max_diag = pattern.diag.iter().fold(0.0f64, |m, &d| m.max(h[d as usize].abs()));
+    let mut apply = |x: &[f64], y: &mut [f64]| symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, h, x, y);
+    let block = (negative + 1).min(BLOCK);
+    let mut pair = {
+        let mut precondition = |r: &mut [f64]| chol.solve_abs(r);
+        eigen::smallest(n, block, &mut apply, &mut precondition, None, FIRST_ITERATIONS, TOLERANCE)
+    };
+    if pair.residual > TOLERANCE && pair.value < 0.0 {
+        // The Ritz value bounds the lowest eigenvalue from above: H + sigma I with sigma a
+        // little beyond it is usually definite at the first try, and close to singular along
+        // the mode sought, which is what makes it a good preconditioner.
+        let mut sigma = SHIFT * pair.value.abs();
+        let mut shifted = h.to_vec();
+        for _ in 0..SHIFT_TRIES {
+            shifted.copy_from_slice(h);
+            for &d in &pattern.diag {
+                shifted[d as usize] += sigma;
+            }
+            if chol.factorize(pattern, &shifted).is_ok() {
+                let mut precondition = |r: &mut [f64]| chol.solve(r);
+                let guess = Some(pair.vector.as_slice());
+                let better = eigen::smallest(n, block, &mut apply, &mut precondition, guess, MAX_ITERATIONS, TOLERANCE);
+                if better.value <= pair.value {
+                    pair = better;
+                }
+                break;
+            }
+            sigma *= 4.0;
+        }
+    }
+    tracing::debug!(
+        negative,
+        curvature = pair.value,
+        iterations = pair.iterations,
+        residual = pair.residual,
+        "unstable"
+    );
+    if pair.value.is_nan() || pair.value >= -ROUND_OFF_CURVATURE * max_diag {
+        return Some(Verdict::Stable);
+    }
+    Some(Verdict::Unstable {
+        negative,
+        curvature: pair.value,
+        direction: pair.vector,
+        eigen_iterations: pair.iterations,
+    })
+}
+
+/// A lower-energy state along +-`direction` from `x` (energy `phi`): the step grows by GROWTH
+/// from FIRST_STEP x `length_scale` (largest displacement) while the energy falls; None when no
+/// step lowers the energy by more than its round-off.
+pub fn escape(
+    x: &[DVec3],
+    dof: &[u32],
+    direction: &[f64],
+    phi: f64,
+    length_scale: f64,
+    energy_at: &dyn Fn(&[DVec3]) -> f64,
+) -> Option<Vec<DVec3>> {
+    let max = direction.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if max.is_nan() || max <= 0.0 {
+        return None;
+    }
+    let noise = ENERGY_ROUND_OFF * phi.abs();
+    let mut best: Option<(f64, Vec<DVec3>)> = None;
+    for sign in [1.0, -1.0] {
+        let mut t = FIRST_STEP * length_scale;
+        for _ in 0..TRIES {
+            let mut trial = x.to_vec();
+            super::newton::step(&mut trial, x, dof, direction, sign * t / max);
+            let e = energy_at(&trial);
+            // (a NaN energy ends the search too)
+            if e.is_nan() || e >= phi - noise {
+                break;
+            }
+            if best.as_ref().is_none_or(|b| e < b.0) {
+                best = Some((e, trial));
+            }
+            t *= GROWTH;
+        }
+    }
+    best.map(|b| b.1)
+}
