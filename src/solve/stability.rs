@@ -14,12 +14,13 @@ use super::eigen;
 use super::linear::{symmetric_product_into, CholeskySolver};
 use super::pattern::Pattern;
 
-/// LOBPCG: block size at most, iterations at most with each preconditioner, and the relative
-/// residual it stops at.
-const BLOCK: usize = 4;
-const FIRST_ITERATIONS: u32 = 15;
+/// LOBPCG: block size, iterations at most with each preconditioner, and the relative residual
+/// it stops at (an escape direction needs no more; on the H15 3D patch, 1132 unstable modes,
+/// blocks of 2-4 and 1e-3 cost 1.9x the shifted-Cholesky test's time per increment).
+const BLOCK: usize = 1;
+const FIRST_ITERATIONS: u32 = 8;
 const MAX_ITERATIONS: u32 = 40;
-const TOLERANCE: f64 = 1e-3;
+const TOLERANCE: f64 = 1e-2;
 /// The shifted preconditioner: sigma = SHIFT x |first curvature estimate|, x4 per failed try.
 const SHIFT: f64 = 2.0;
 const SHIFT_TRIES: u32 = 8;

@@ -1,0 +1,230 @@
+//! Fill-reducing orderings on the real matrices (issue 21 item 4): our geometric nested
+//! dissection (`solve::ordering`), faer's AMD and METIS nested dissection (METIS_NodeND, from
+//! `metis-sys` with its vendored build), each given to faer's symbolic factorization. Prints
+//! nnz(L), the factorization's flops (sum over columns of their count squared), the symbolic
+//! time and the median of three numeric factorizations, per matrix:
+//! - the two-layer fig. 6-3 KKT matrix (LDL^T; the multiplier rows after the Hessian's order,
+//!   or ordered with it by AMD / METIS over the whole matrix),
+//! - the KCK18 creature's shell Hessian and the H15 3D patch's (small) tet Hessian (LL^T of
+//!   the Abs-projected Hessian).
+//!
+//! `cargo bench --bench orderings` (scenes as arguments, e.g. `-- h15/patch_3d.ron`, to choose).
+
+use std::time::Instant;
+
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Par, Side};
+use skinsim::physics::psd::Filter;
+use skinsim::solve::eval::assemble;
+use skinsim::solve::pattern::{Pattern, NONE};
+use skinsim::solve::PackedPatch;
+
+/// A symmetric matrix's lower triangle (CSC) and whether it is a KKT matrix (LDL^T).
+struct Matrix {
+    name: String,
+    n: usize,
+    col_ptr: Vec<u32>,
+    row_idx: Vec<u32>,
+    values: Vec<f64>,
+    kkt: bool,
+    /// Our order: the pattern's nested dissection, then the multipliers.
+    ours: Vec<u32>,
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| a.ends_with(".ron")).collect();
+    let scenes = if args.is_empty() {
+        vec![
+            "lk14/fig6_3_two_layers.ron".to_string(),
+            "kck18/creature.ron".to_string(),
+            "h15/patch_3d_small.ron".to_string(),
+        ]
+    } else {
+        args
+    };
+    println!("| matrix | n | ordering | nnz(L) | flops | symbolic (s) | factorization (ms) |");
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    for scene in scenes {
+        let m = matrix(&scene);
+        let metis = metis_order(&m);
+        for (label, order) in [("ours (geometric ND)", Some(m.ours.clone())), ("AMD", None), ("METIS ND", Some(metis))] {
+            let (symbolic, symbolic_s) = analyze(&m, order.as_deref());
+            let (nnz, flops) = fill(&symbolic);
+            let ms = factorize_ms(&m, &symbolic);
+            println!(
+                "| {} | {} | {label} | {nnz} | {flops:.3e} | {symbolic_s:.2} | {ms:.0} |",
+                m.name, m.n
+            );
+        }
+    }
+}
+
+/// The scene's first-frame matrix (after one frame: buckled where it buckles).
+fn matrix(scene: &str) -> Matrix {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(scene);
+    let built = skinsim::scene::load(&path).expect("a valid scene");
+    let mut sim = skinsim_systems::Simulation::new(&built);
+    sim.step();
+    let mut q = sim.world.query::<&PackedPatch>();
+    let packed = q.iter(&sim.world).next().expect("a patch");
+    let s = &packed.state;
+    let p = Pattern::build(&s.x, &s.fixed, &s.tie, &packed.elements);
+    let (mut grad, mut h) = (vec![0.0; p.n], vec![0.0; p.nnz()]);
+    let kkt = !packed.constraints.is_empty();
+    assemble(&packed.elements, &p, &s.x, if kkt { Filter::Exact } else { Filter::Abs }, &mut grad, &mut h);
+    let name = std::path::Path::new(scene).file_stem().unwrap().to_string_lossy().to_string();
+    if !kkt {
+        return Matrix { name, n: p.n, col_ptr: p.col_ptr, row_idx: p.row_idx, values: h, kkt, ours: p.order };
+    }
+    // [[H, s J^T], [s J, -delta]], as kkt.rs factorizes it.
+    let c = &packed.constraints;
+    let mut jac = Vec::new();
+    c.jacobian(&s.x, &mut jac);
+    let (n, m) = (p.n, c.rows());
+    let mean = p.diag.iter().map(|&d| h[d as usize].abs()).sum::<f64>() / n as f64;
+    let scale = mean.sqrt();
+    let mut by_col: Vec<Vec<(u32, f64)>> = vec![Vec::new(); n];
+    for (e, &(r, v, coord)) in c.entries.iter().enumerate() {
+        let d = p.dof[3 * v as usize + coord as usize];
+        if d != NONE {
+            by_col[d as usize].push((n as u32 + r, scale * jac[e]));
+        }
+    }
+    let (mut col_ptr, mut row_idx, mut values) = (vec![0u32], Vec::new(), Vec::new());
+    for (col, extra) in by_col.iter_mut().enumerate() {
+        let span = p.col_ptr[col] as usize..p.col_ptr[col + 1] as usize;
+        row_idx.extend_from_slice(&p.row_idx[span.clone()]);
+        values.extend_from_slice(&h[span]);
+        extra.sort_by_key(|e| e.0);
+        for &(r, v) in extra.iter() {
+            if row_idx.last() == Some(&r) {
+                *values.last_mut().unwrap() += v;
+            } else {
+                row_idx.push(r);
+                values.push(v);
+            }
+        }
+        col_ptr.push(row_idx.len() as u32);
+    }
+    for r in 0..m {
+        row_idx.push((n + r) as u32);
+        values.push(-1e-10 * mean);
+        col_ptr.push(row_idx.len() as u32);
+    }
+    let ours = p.order.iter().copied().chain((n..n + m).map(|r| r as u32)).collect();
+    Matrix { name: format!("{name} (KKT, {m} rows)"), n: n + m, col_ptr, row_idx, values, kkt, ours }
+}
+
+/// METIS_NodeND on the matrix's graph (both triangles, no diagonal).
+fn metis_order(m: &Matrix) -> Vec<u32> {
+    let mut adjacency: Vec<Vec<i32>> = vec![Vec::new(); m.n];
+    for c in 0..m.n {
+        for &r in &m.row_idx[m.col_ptr[c] as usize..m.col_ptr[c + 1] as usize] {
+            if r as usize != c {
+                adjacency[c].push(r as i32);
+                adjacency[r as usize].push(c as i32);
+            }
+        }
+    }
+    let mut xadj = vec![0i32];
+    let mut adjncy = Vec::new();
+    for a in &mut adjacency {
+        a.sort_unstable();
+        a.dedup();
+        adjncy.extend_from_slice(a);
+        xadj.push(adjncy.len() as i32);
+    }
+    let mut nvtxs = m.n as i32;
+    let (mut perm, mut iperm) = (vec![0i32; m.n], vec![0i32; m.n]);
+    // SAFETY: METIS reads the CSR graph (xadj of length n + 1, adjncy indices below n) and writes
+    // perm and iperm of length n; null vertex weights and options select its defaults.
+    let status = unsafe {
+        metis_sys::METIS_NodeND(
+            &mut nvtxs,
+            xadj.as_mut_ptr(),
+            adjncy.as_mut_ptr(),
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+            perm.as_mut_ptr(),
+            iperm.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, metis_sys::rstatus_et_METIS_OK, "METIS_NodeND");
+    // METIS: row i of the permuted matrix is row perm[i] of the original (an elimination order).
+    perm.into_iter().map(|v| v as u32).collect()
+}
+
+fn analyze(m: &Matrix, order: Option<&[u32]>) -> (SymbolicCholesky<u32>, f64) {
+    let sym = SymbolicSparseColMatRef::new_checked(m.n, m.n, &m.col_ptr, None, &m.row_idx);
+    let clock = Instant::now();
+    let symbolic = match order {
+        Some(forward) => {
+            let mut inverse = vec![0u32; m.n];
+            for (k, &d) in forward.iter().enumerate() {
+                inverse[d as usize] = k as u32;
+            }
+            let perm = faer::perm::PermRef::new_checked(forward, &inverse, m.n);
+            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
+        }
+        None => factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default()),
+    }
+    .expect("symbolic factorization");
+    (symbolic, clock.elapsed().as_secs_f64())
+}
+
+/// nnz(L) and the flops of the factorization (sum over columns of the column count squared).
+fn fill(symbolic: &SymbolicCholesky<u32>) -> (usize, f64) {
+    let flops = match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let cp = s.col_ptr();
+            (0..s.nrows()).map(|j| ((cp[j + 1] - cp[j]) as f64).powi(2)).sum()
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let (begin, end, val) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_val());
+            (0..s.n_supernodes())
+                .map(|k| {
+                    let cols = (end[k] - begin[k]) as usize;
+                    let rows = (val[k + 1] - val[k]) as usize / cols.max(1);
+                    (0..cols).map(|j| ((rows - j) as f64).powi(2)).sum::<f64>()
+                })
+                .sum()
+        }
+    };
+    (symbolic.len_val(), flops)
+}
+
+/// Median of three numeric factorizations (ms): LDL^T for a KKT matrix, LL^T otherwise.
+fn factorize_ms(m: &Matrix, symbolic: &SymbolicCholesky<u32>) -> f64 {
+    let par = Par::Seq;
+    let req = StackReq::any_of(&[
+        symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+        symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
+    ]);
+    let mut mem = MemBuffer::new(req);
+    let mut l = vec![0.0; symbolic.len_val()];
+    let sym = SymbolicSparseColMatRef::new_checked(m.n, m.n, &m.col_ptr, None, &m.row_idx);
+    let a = SparseColMatRef::new(sym, &m.values);
+    let mut times: Vec<f64> = (0..3)
+        .map(|_| {
+            let clock = Instant::now();
+            let stack = MemStack::new(&mut mem);
+            let ok = if m.kkt {
+                symbolic
+                    .factorize_numeric_ldlt(&mut l, a, Side::Lower, Default::default(), par, stack, Default::default())
+                    .is_ok()
+            } else {
+                symbolic
+                    .factorize_numeric_llt(&mut l, a, Side::Lower, Default::default(), par, stack, Default::default())
+                    .is_ok()
+            };
+            assert!(ok, "{}: numeric factorization", m.name);
+            clock.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[1]
+}
