@@ -1,6 +1,7 @@
 //! Fill-reducing orderings on the real matrices (issue 21 item 4): our geometric nested
 //! dissection (`solve::ordering`), faer's AMD and METIS nested dissection (METIS_NodeND, from
-//! `metis-sys` with its vendored build), each given to faer's symbolic factorization. Prints
+//! `metis-sys` with its vendored build), each given to faer's symbolic factorization. (The
+//! solver picks between ours and METIS's by these flops: `CholeskySolver::analyze`.) Prints
 //! nnz(L), the factorization's flops (sum over columns of their count squared), the symbolic
 //! time and the median of three numeric factorizations, per matrix:
 //! - the two-layer fig. 6-3 KKT matrix (LDL^T; the multiplier rows after the Hessian's order,
@@ -14,7 +15,7 @@ use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Par, Side};
@@ -51,14 +52,12 @@ fn main() {
     for scene in scenes {
         let m = matrix(&scene);
         let metis = metis_order(&m);
-        for (label, order) in [("ours (geometric ND)", Some(m.ours.clone())), ("AMD", None), ("METIS ND", Some(metis))] {
+        for (label, order) in [("ours (geometric ND)", Some(m.ours.clone())), ("AMD", None), ("METIS ND", Some(metis))]
+        {
             let (symbolic, symbolic_s) = analyze(&m, order.as_deref());
             let (nnz, flops) = fill(&symbolic);
             let ms = factorize_ms(&m, &symbolic);
-            println!(
-                "| {} | {} | {label} | {nnz} | {flops:.3e} | {symbolic_s:.2} | {ms:.0} |",
-                m.name, m.n
-            );
+            println!("| {} | {} | {label} | {nnz} | {flops:.3e} | {symbolic_s:.2} | {ms:.0} |", m.name, m.n);
         }
     }
 }
@@ -119,43 +118,8 @@ fn matrix(scene: &str) -> Matrix {
     Matrix { name: format!("{name} (KKT, {m} rows)"), n: n + m, col_ptr, row_idx, values, kkt, ours }
 }
 
-/// METIS_NodeND on the matrix's graph (both triangles, no diagonal).
 fn metis_order(m: &Matrix) -> Vec<u32> {
-    let mut adjacency: Vec<Vec<i32>> = vec![Vec::new(); m.n];
-    for c in 0..m.n {
-        for &r in &m.row_idx[m.col_ptr[c] as usize..m.col_ptr[c + 1] as usize] {
-            if r as usize != c {
-                adjacency[c].push(r as i32);
-                adjacency[r as usize].push(c as i32);
-            }
-        }
-    }
-    let mut xadj = vec![0i32];
-    let mut adjncy = Vec::new();
-    for a in &mut adjacency {
-        a.sort_unstable();
-        a.dedup();
-        adjncy.extend_from_slice(a);
-        xadj.push(adjncy.len() as i32);
-    }
-    let mut nvtxs = m.n as i32;
-    let (mut perm, mut iperm) = (vec![0i32; m.n], vec![0i32; m.n]);
-    // SAFETY: METIS reads the CSR graph (xadj of length n + 1, adjncy indices below n) and writes
-    // perm and iperm of length n; null vertex weights and options select its defaults.
-    let status = unsafe {
-        metis_sys::METIS_NodeND(
-            &mut nvtxs,
-            xadj.as_mut_ptr(),
-            adjncy.as_mut_ptr(),
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            perm.as_mut_ptr(),
-            iperm.as_mut_ptr(),
-        )
-    };
-    assert_eq!(status, metis_sys::rstatus_et_METIS_OK, "METIS_NodeND");
-    // METIS: row i of the permuted matrix is row perm[i] of the original (an elimination order).
-    perm.into_iter().map(|v| v as u32).collect()
+    skinsim::solve::ordering::metis_nested_dissection(&m.col_ptr, &m.row_idx).expect("METIS_NodeND")
 }
 
 fn analyze(m: &Matrix, order: Option<&[u32]>) -> (SymbolicCholesky<u32>, f64) {
@@ -170,7 +134,9 @@ fn analyze(m: &Matrix, order: Option<&[u32]>) -> (SymbolicCholesky<u32>, f64) {
             let perm = faer::perm::PermRef::new_checked(forward, &inverse, m.n);
             factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
         }
-        None => factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default()),
+        None => {
+            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
+        }
     }
     .expect("symbolic factorization");
     (symbolic, clock.elapsed().as_secs_f64())
@@ -178,23 +144,7 @@ fn analyze(m: &Matrix, order: Option<&[u32]>) -> (SymbolicCholesky<u32>, f64) {
 
 /// nnz(L) and the flops of the factorization (sum over columns of the column count squared).
 fn fill(symbolic: &SymbolicCholesky<u32>) -> (usize, f64) {
-    let flops = match symbolic.raw() {
-        SymbolicCholeskyRaw::Simplicial(s) => {
-            let cp = s.col_ptr();
-            (0..s.nrows()).map(|j| ((cp[j + 1] - cp[j]) as f64).powi(2)).sum()
-        }
-        SymbolicCholeskyRaw::Supernodal(s) => {
-            let (begin, end, val) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_val());
-            (0..s.n_supernodes())
-                .map(|k| {
-                    let cols = (end[k] - begin[k]) as usize;
-                    let rows = (val[k + 1] - val[k]) as usize / cols.max(1);
-                    (0..cols).map(|j| ((rows - j) as f64).powi(2)).sum::<f64>()
-                })
-                .sum()
-        }
-    };
-    (symbolic.len_val(), flops)
+    (symbolic.len_val(), skinsim::solve::linear::factor_flops(symbolic))
 }
 
 /// Median of three numeric factorizations (ms): LDL^T for a KKT matrix, LL^T otherwise.

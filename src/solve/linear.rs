@@ -16,9 +16,12 @@ use super::pattern::Pattern;
 /// shell (KCK18 creature) 110-135 ms sequential against 150-180 ms parallel per factorization;
 /// a 55k-DOF tet slab (H15 patch_3d_small) 230 ms either way. Parallel is left to larger problems.
 pub const PARALLEL_MIN_DOFS: usize = 200_000;
-/// From this many DOFs nested dissection orders the factorization; below, AMD (measured:
-/// 37 vs 62 ms per frame on the 4.4k-DOF default scene; about 5 % less fill at 100k DOFs; on the
-/// 30.7k-DOF creature shell 90-110 against 110-135 ms per factorization).
+/// From this many DOFs nested dissection orders the factorization - ours or METIS's, whichever
+/// needs fewer flops; below, AMD (measured: 37 vs 62 ms per frame on the 4.4k-DOF default scene;
+/// about 5 % less fill at 100k DOFs; on the 30.7k-DOF creature shell 90-110 against 110-135 ms
+/// per factorization). METIS against ours (benches/orderings.rs): the H15 3D patch (small,
+/// 47.6k DOFs) nnz(L) 22.2M against 26.0M, 357 against 476 ms; the creature 3.9M against 4.5M,
+/// 54 ms both.
 pub const NESTED_DISSECTION_MIN_DOFS: usize = 20_000;
 
 pub struct CholeskySolver {
@@ -40,19 +43,30 @@ pub struct CholeskySolver {
 pub struct NotPositiveDefinite;
 
 impl CholeskySolver {
-    /// Symbolic analysis (AMD ordering) of the pattern.
+    /// Symbolic analysis of the pattern: AMD below NESTED_DISSECTION_MIN_DOFS, else the nested
+    /// dissection (the pattern's geometric one or METIS's) whose factor needs fewer flops.
     pub fn analyze(p: &Pattern) -> Self {
         let par = if p.n >= PARALLEL_MIN_DOFS { Par::rayon(rayon::current_num_threads()) } else { Par::Seq };
         let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
-        let mut inverse = vec![0u32; p.n];
-        for (k, &d) in p.order.iter().enumerate() {
-            inverse[d as usize] = k as u32;
-        }
-        let perm = faer::perm::PermRef::new_checked(&p.order, &inverse, p.n);
-        let ordering =
-            if p.n >= NESTED_DISSECTION_MIN_DOFS { SymmetricOrdering::Custom(perm) } else { SymmetricOrdering::Amd };
-        let symbolic = factorize_symbolic_cholesky(sym, Side::Lower, ordering, CholeskySymbolicParams::default())
-            .expect("symbolic Cholesky of a valid pattern");
+        let with_order = |order: &[u32]| {
+            let mut inverse = vec![0u32; p.n];
+            for (k, &d) in order.iter().enumerate() {
+                inverse[d as usize] = k as u32;
+            }
+            let perm = faer::perm::PermRef::new_checked(order, &inverse, p.n);
+            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
+                .expect("symbolic Cholesky of a valid pattern")
+        };
+        let symbolic = if p.n >= NESTED_DISSECTION_MIN_DOFS {
+            let ours = with_order(&p.order);
+            match super::ordering::metis_nested_dissection(&p.col_ptr, &p.row_idx).map(|o| with_order(&o)) {
+                Some(metis) if factor_flops(&metis) < factor_flops(&ours) => metis,
+                _ => ours,
+            }
+        } else {
+            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
+                .expect("symbolic Cholesky of a valid pattern")
+        };
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
             symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
@@ -210,6 +224,27 @@ pub(super) fn pivot_positions(symbolic: &SymbolicCholesky<u32>) -> Vec<usize> {
                     (0..cols).map(move |j| val[k] as usize + j * rows + j)
                 })
                 .collect()
+        }
+    }
+}
+
+/// The flops of a numeric factorization with this symbolic factor: the sum over L's columns of
+/// their entry count squared.
+pub fn factor_flops(symbolic: &SymbolicCholesky<u32>) -> f64 {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let cp = s.col_ptr();
+            (0..s.nrows()).map(|j| ((cp[j + 1] - cp[j]) as f64).powi(2)).sum()
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let (begin, end, val) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_val());
+            (0..s.n_supernodes())
+                .map(|k| {
+                    let cols = (end[k] - begin[k]) as usize;
+                    let rows = (val[k + 1] - val[k]) as usize / cols.max(1);
+                    (0..cols).map(|j| ((rows - j) as f64).powi(2)).sum::<f64>()
+                })
+                .sum()
         }
     }
 }

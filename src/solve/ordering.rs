@@ -9,6 +9,48 @@ use glam::DVec3;
 /// Parts of at most this many vertices are not split further.
 const LEAF: usize = 48;
 
+/// METIS nested dissection (METIS_NodeND with its default, fixed seed: deterministic) of the
+/// graph of a symmetric matrix whose lower triangle is stored as CSC; an elimination order.
+pub fn metis_nested_dissection(col_ptr: &[u32], row_idx: &[u32]) -> Option<Vec<u32>> {
+    let n = col_ptr.len() - 1;
+    let mut adjacency: Vec<Vec<i32>> = vec![Vec::new(); n];
+    for c in 0..n {
+        for &r in &row_idx[col_ptr[c] as usize..col_ptr[c + 1] as usize] {
+            if r as usize != c {
+                adjacency[c].push(r as i32);
+                adjacency[r as usize].push(c as i32);
+            }
+        }
+    }
+    let mut xadj = Vec::with_capacity(n + 1);
+    xadj.push(0i32);
+    let mut adjncy = Vec::new();
+    for a in &mut adjacency {
+        a.sort_unstable();
+        a.dedup();
+        adjncy.extend_from_slice(a);
+        xadj.push(i32::try_from(adjncy.len()).ok()?);
+    }
+    let mut nvtxs = i32::try_from(n).ok()?;
+    let (mut perm, mut iperm) = (vec![0i32; n], vec![0i32; n]);
+    // SAFETY: METIS reads the CSR graph (xadj of length n + 1, adjncy entries below n, no
+    // self loops) and writes perm and iperm, each of length n; null weights and options select
+    // its defaults.
+    let status = unsafe {
+        metis_sys::METIS_NodeND(
+            &mut nvtxs,
+            xadj.as_mut_ptr(),
+            adjncy.as_mut_ptr(),
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+            perm.as_mut_ptr(),
+            iperm.as_mut_ptr(),
+        )
+    };
+    // METIS: row i of the permuted matrix is row perm[i] of the original.
+    (status == metis_sys::rstatus_et_METIS_OK).then(|| perm.into_iter().map(|v| v as u32).collect())
+}
+
 /// Vertex elimination order. `adjacency` must be symmetric (both directions listed).
 pub fn nested_dissection(points: &[DVec3], adjacency: &[Vec<u32>]) -> Vec<u32> {
     let n = points.len();
