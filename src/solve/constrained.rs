@@ -139,8 +139,7 @@ pub(super) fn newton_kkt(
             settings.tolerance,
             &merit,
             &mut out,
-        )
-        .is_some();
+        );
         if !accepted {
             // A rejected step at the round-off floor still has to satisfy the constraints.
             out.converged &= violation <= CONSTRAINT_TOLERANCE;

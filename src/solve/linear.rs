@@ -3,6 +3,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky, SymbolicCholeskyRaw,
     SymmetricOrdering,
@@ -213,17 +214,9 @@ pub(super) fn pivot_positions(symbolic: &SymbolicCholesky<u32>) -> Vec<usize> {
                 })
                 .collect()
         }
+        // (D on each supernode block's diagonal)
         SymbolicCholeskyRaw::Supernodal(s) => {
-            // Supernode k: a column-major block of (its columns + its off-block rows) x its
-            // columns from col_ptr_for_val[k]; D on the block's diagonal.
-            let (begin, end, val) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_val());
-            (0..s.n_supernodes())
-                .flat_map(|k| {
-                    let cols = (end[k] - begin[k]) as usize;
-                    let rows = (val[k + 1] - val[k]) as usize / cols.max(1);
-                    (0..cols).map(move |j| val[k] as usize + j * rows + j)
-                })
-                .collect()
+            supernode_blocks(s).flat_map(|(offset, rows, cols)| (0..cols).map(move |j| offset + j * rows + j)).collect()
         }
     }
 }
@@ -237,16 +230,19 @@ pub fn factor_flops(symbolic: &SymbolicCholesky<u32>) -> f64 {
             (0..s.nrows()).map(|j| ((cp[j + 1] - cp[j]) as f64).powi(2)).sum()
         }
         SymbolicCholeskyRaw::Supernodal(s) => {
-            let (begin, end, val) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_val());
-            (0..s.n_supernodes())
-                .map(|k| {
-                    let cols = (end[k] - begin[k]) as usize;
-                    let rows = (val[k + 1] - val[k]) as usize / cols.max(1);
-                    (0..cols).map(|j| ((rows - j) as f64).powi(2)).sum::<f64>()
-                })
-                .sum()
+            supernode_blocks(s).map(|(_, rows, cols)| (0..cols).map(|j| ((rows - j) as f64).powi(2)).sum::<f64>()).sum()
         }
     }
+}
+
+/// Each supernode's block of factor values: (offset, rows, columns), column-major, its
+/// columns first (the diagonal block), then its off-block rows.
+fn supernode_blocks(s: &SymbolicSupernodalCholesky<u32>) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+    let (begin, end, val) = (s.supernode_begin(), s.supernode_end(), s.col_ptr_for_val());
+    (0..s.n_supernodes()).map(move |k| {
+        let cols = (end[k] - begin[k]) as usize;
+        (val[k] as usize, (val[k + 1] - val[k]) as usize / cols.max(1), cols)
+    })
 }
 
 /// The number of negative entries of D in an LDL^T factor (its matrix's negative inertia).

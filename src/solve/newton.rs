@@ -260,9 +260,7 @@ fn newton(
                         out.converged = false;
                         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
                         let (tol, total) = (settings.tolerance, &total);
-                        if line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, tol, total, &mut out)
-                            .is_some()
-                        {
+                        if line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, tol, total, &mut out) {
                             continue;
                         }
                     }
@@ -286,7 +284,7 @@ fn newton(
             if cg.is_ok() {
                 let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
                 if slope < 0.0 {
-                    match line_search(
+                    if line_search(
                         packed,
                         pattern,
                         &dx,
@@ -298,9 +296,9 @@ fn newton(
                         &total,
                         &mut out,
                     ) {
-                        Some(_) => continue,
-                        None => break,
+                        continue;
                     }
+                    break;
                 }
             }
         }
@@ -343,29 +341,17 @@ fn newton(
             break;
         }
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        match line_search(
-            packed,
-            pattern,
-            &dx,
-            slope,
-            phi,
-            residual,
-            energy_scale,
-            settings.tolerance,
-            &total,
-            &mut out,
-        ) {
-            Some(_) => {}
-            None => break,
+        if !line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out)
+        {
+            break;
         }
     }
     start.finish(packed);
     Ok(out)
 }
 
-/// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns the
-/// step length taken, None when no step is accepted (the state is restored; near round-off it
-/// counts as converged).
+/// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
+/// when no step is accepted (the state is restored; near round-off it counts as converged).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn line_search(
     packed: &mut PackedPatch,
@@ -378,7 +364,7 @@ pub(super) fn line_search(
     tolerance: f64,
     total: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
     out: &mut FrameOutcome,
-) -> Option<f64> {
+) -> bool {
     let clock = std::time::Instant::now();
     let x0 = packed.state.x.clone();
     let mut alpha = 1.0;
@@ -408,7 +394,7 @@ pub(super) fn line_search(
             out.converged = true;
         }
     }
-    accepted.then_some(alpha)
+    accepted
 }
 
 fn max_abs(v: &[f64]) -> f64 {
