@@ -170,10 +170,7 @@ impl CholeskySolver {
     /// Solves A x = rhs in place with the last `inertia` factor (A's LDL^T).
     pub fn solve_ldl(&mut self, rhs: &mut [f64]) {
         assert!(!self.ldl.is_empty(), "solve_ldl after a successful inertia");
-        let n = rhs.len();
-        let ldlt = LdltRef::new(&self.symbolic, &self.ldl);
-        let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
-        ldlt.solve_in_place_with_conj(Conj::No, mat, self.par, MemStack::new(&mut self.mem));
+        ldlt_solve(&self.symbolic, &self.ldl, self.par, &mut self.mem, rhs);
     }
 
     /// Solves (P^T L |D| L^T P) x = rhs in place with the last `inertia` factor: a symmetric
@@ -181,10 +178,7 @@ impl CholeskySolver {
     /// definite H it is H^-1 itself).
     pub fn solve_abs(&mut self, rhs: &mut [f64]) {
         assert!(!self.ldl_abs.is_empty(), "solve_abs after a successful inertia");
-        let n = rhs.len();
-        let ldlt = LdltRef::new(&self.symbolic, &self.ldl_abs);
-        let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
-        ldlt.solve_in_place_with_conj(Conj::No, mat, self.par, MemStack::new(&mut self.mem));
+        ldlt_solve(&self.symbolic, &self.ldl_abs, self.par, &mut self.mem, rhs);
     }
 
     /// Whether the last factorization succeeded (its factor can precondition CG).
@@ -200,6 +194,13 @@ impl CholeskySolver {
     pub fn is_supernodal(&self) -> bool {
         matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
     }
+}
+
+/// Solves in place with an LDL^T factor's values on `symbolic`.
+fn ldlt_solve(symbolic: &SymbolicCholesky<u32>, values: &[f64], par: Par, mem: &mut MemBuffer, rhs: &mut [f64]) {
+    let n = rhs.len();
+    let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+    LdltRef::new(symbolic, values).solve_in_place_with_conj(Conj::No, mat, par, MemStack::new(mem));
 }
 
 /// Where each entry of D sits in an LDL^T factor's values (faer stores D on L's diagonal).
