@@ -160,3 +160,55 @@ fn kernels_follow_a_retriangulated_layer() {
     assert!(check_weights(&mut sim) > 0);
     assert!(s.patches[0].converged && s.patches[0].constraint_violation < 1e-9);
 }
+
+/// Issue 21, the trust-region globalization (`globalization: TrustRegion`) on a small buckling
+/// problem: the first frame of the stiffness scene (the flat, kernel-held sheet compressed past
+/// its critical strain), solved from the same start with both globalizations. Every accepted
+/// step lowers the merit function, the frame converges to an energy no higher than the line search's, in at
+/// most 1.6x its iterations (measured: 66 against 44; the trust region is kept for comparison,
+/// not as the default: `src/solve/README.md`).
+#[test]
+fn the_trust_region_lowers_the_merit_at_every_step_of_a_buckling_frame() {
+    use skinsim::solve::{solve_frame, Globalization, PackedPatch};
+    let mut scene = load("lk14/fig6_1_stiffness_quick.ron");
+    scene.patches[0].solver.max_iterations = 0;
+    let mut sim = Simulation::new(&scene);
+    sim.step(); // frame 1's drivers, no Newton iteration: the buckling frame's start
+    let dt = sim.world.resource::<SimClock>().dt;
+    let mut q = sim.world.query::<&PackedPatch>();
+    let start = q.single(&sim.world).unwrap();
+    let solve = |globalization| {
+        let mut packed = PackedPatch {
+            state: start.state.clone(),
+            elements: start.elements.clone(),
+            constraints: start.constraints.clone(),
+            length_scale: start.length_scale,
+            cache: Default::default(),
+        };
+        let mut settings = scene.patches[0].solver.clone();
+        (settings.max_iterations, settings.globalization) = (200, globalization);
+        solve_frame(&mut packed, &settings, dt).unwrap()
+    };
+    let line_search = solve(Globalization::LineSearch);
+    let region = solve(Globalization::TrustRegion);
+    assert!(line_search.converged && region.converged);
+    assert!(line_search.iterations > 10, "a buckling frame: {} iterations", line_search.iterations);
+    assert!(region.merits.len() > 10);
+    for w in region.merits.windows(2) {
+        // (a step at the round-off floor may keep the merit within its round-off)
+        assert!(w[1] <= w[0] + 1e-12 * w[0].abs(), "the merit rose: {} -> {}", w[0], w[1]);
+    }
+    // (another equilibrium of lower energy is fine, as in the issue's equal-accuracy rule)
+    assert!(rel(region.energy, line_search.energy) < 1e-3, "energies {} and {}", region.energy, line_search.energy);
+    assert!(region.constraint_violation <= 1e-9);
+    assert!(
+        region.iterations as f64 <= 1.6 * line_search.iterations as f64,
+        "{} iterations against {}",
+        region.iterations,
+        line_search.iterations
+    );
+    eprintln!(
+        "buckling frame: line search {} iterations / {} factorizations, trust region {} / {}",
+        line_search.iterations, line_search.factorizations, region.iterations, region.factorizations
+    );
+}

@@ -18,7 +18,8 @@ use super::newton::{line_search, step, FrameOutcome, FrameStart, ARMIJO};
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::progress::Progress;
-use super::settings::{SolveMode, SolverSettings};
+use super::settings::{Globalization, SolveMode, SolverSettings};
+use super::trust_region::{Iterate, TrustRegion};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
 
@@ -36,13 +37,13 @@ pub(super) fn newton_kkt(
     let start = FrameStart::begin(packed, settings, dt);
     let inertia = start.inertia();
     let constraints = std::mem::take(&mut packed.constraints);
-    let violation_l1 =
-        |x: &[DVec3]| constraints.values(x).iter().map(|c| c.x.abs() + c.y.abs() + c.z.abs()).sum::<f64>();
 
     let energy_scale = packed.elements.energy_scale(packed.length_scale);
     let (mut grad, mut values, mut dx) = (vec![0.0; n], vec![0.0; pattern.nnz()], vec![0.0; n]);
     let (mut lambda, mut next_lambda, mut jac) = (vec![0.0; m], vec![0.0; m], Vec::new());
     let mut rho = 0.0f64;
+    let mut region = TrustRegion::new();
+    let objective = |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
     let mut out = FrameOutcome::default();
     let mut progress = Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n);
     let result = loop {
@@ -64,7 +65,7 @@ pub(super) fn newton_kkt(
                 lagrangian[d as usize] += jac[e] * lambda[r as usize];
             }
         }
-        let phi = parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(&packed.state.x));
+        let phi = objective(&parts, &packed.state.x);
         let gnorm = lagrangian.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
             break Err(SolveError::NonFinite { quantity: Quantity::State, iterations: out.iterations });
@@ -86,6 +87,35 @@ pub(super) fn newton_kkt(
         }
         if out.iterations >= settings.max_iterations {
             break Ok(());
+        }
+        if settings.globalization == Globalization::TrustRegion && settings.mode != SolveMode::LinearizedEuler {
+            let it = Iterate {
+                h: &values,
+                jac: &jac,
+                grad: &grad,
+                c: &c,
+                constraints: &constraints,
+                phi,
+                residual,
+                energy_scale,
+            };
+            match region.step(packed, pattern, kkt, &it, &objective, &mut next_lambda, &mut rho, &mut out) {
+                Ok(true) => {
+                    std::mem::swap(&mut lambda, &mut next_lambda);
+                    continue;
+                }
+                Ok(false) => {
+                    // (at the round-off floor, as the line search's failure)
+                    out.converged = residual <= 1e3 * settings.tolerance && violation <= CONSTRAINT_TOLERANCE;
+                    break Ok(());
+                }
+                Err(_) if filter == Filter::Exact && settings.projection != Projection::None => {
+                    progress.projecting = true;
+                    out.regularized += 1;
+                    continue;
+                }
+                Err(e) => break Err(e),
+            }
         }
         let clock = std::time::Instant::now();
         let solved = kkt.step(pattern, &values, &jac, &grad, &c, &mut dx, &mut next_lambda);
@@ -118,9 +148,7 @@ pub(super) fn newton_kkt(
             }
             break Err(SolveError::NoDescent { iterations: out.iterations });
         }
-        let merit = |parts: &EnergyParts, x: &[DVec3]| {
-            parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x)) + rho * violation_l1(x)
-        };
+        let merit = |parts: &EnergyParts, x: &[DVec3]| objective(parts, x) + rho * constraints.violation_l1(x);
         let phi_merit = phi + rho * c_l1;
         if second_order_correction(packed, pattern, kkt, &constraints, &dx, phi_merit, merit_slope, &merit) {
             out.iterations += 1;
@@ -177,18 +205,37 @@ fn second_order_correction(
     if armijo(full) {
         return true;
     }
+    correction(packed, pattern, kkt, constraints, &x0, dx, phi_merit + ARMIJO * merit_slope, merit)
+}
+
+/// The full step `dx` from `x0` plus a correction back onto the constraints (one more solve with
+/// the last factorization): true when its merit is at most `target` (the state moved), false
+/// with the state back at `x0`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn correction(
+    packed: &mut PackedPatch,
+    pattern: &Pattern,
+    kkt: &mut KktSystem,
+    constraints: &Constraints,
+    x0: &[DVec3],
+    dx: &[f64],
+    target: f64,
+    merit: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
+) -> bool {
     if !constraints.is_empty() {
+        step(&mut packed.state.x, x0, &pattern.dof, dx, 1.0);
         let c: Vec<f64> = constraints.values(&packed.state.x).iter().flat_map(|v| v.to_array()).collect();
         let mut correction = vec![0.0; dx.len()];
         if kkt.correct(&c, &mut correction).is_ok() {
             let corrected: Vec<f64> = dx.iter().zip(&correction).map(|(a, b)| a + b).collect();
-            step(&mut packed.state.x, &x0, &pattern.dof, &corrected, 1.0);
-            if armijo(merit(&energy(&packed.elements, &packed.state.x), &packed.state.x)) {
+            step(&mut packed.state.x, x0, &pattern.dof, &corrected, 1.0);
+            let value = merit(&energy(&packed.elements, &packed.state.x), &packed.state.x);
+            if value.is_finite() && value <= target {
                 tracing::trace!("second-order correction taken");
                 return true;
             }
         }
     }
-    packed.state.x.copy_from_slice(&x0);
+    packed.state.x.copy_from_slice(x0);
     false
 }

@@ -133,6 +133,11 @@ impl Constraints {
             .collect()
     }
 
+    /// |c(x)|_1, the l1 merit function's penalty term.
+    pub fn violation_l1(&self, x: &[DVec3]) -> f64 {
+        self.values(x).iter().map(|c| c.x.abs() + c.y.abs() + c.z.abs()).sum()
+    }
+
     /// Jacobian values, aligned with `entries` (duplicates summed).
     pub fn jacobian(&self, x: &[DVec3], out: &mut Vec<f64>) {
         out.clear();

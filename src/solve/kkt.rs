@@ -178,7 +178,7 @@ impl KktSystem {
     /// count less m. None when the LDL^T breaks down or has fewer than m negative pivots
     /// (round-off), and with Schur. Replaces the last factorization.
     pub fn unstable_directions(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64]) -> Option<usize> {
-        let mean_diag = h.diag.iter().map(|&d| h_values[d as usize].abs()).sum::<f64>() / self.n.max(1) as f64;
+        let mean_diag = mean_abs_diagonal(h, h_values);
         self.load(h, h_values, j_values, mean_diag, 0.0);
         self.negative = None;
         let _ = self.factorize(h);
@@ -199,38 +199,79 @@ impl KktSystem {
         dx: &mut [f64],
         lambda: &mut [f64],
     ) -> Result<(), NotPositiveDefinite> {
-        let mean_diag = h.diag.iter().map(|&d| h_values[d as usize].abs()).sum::<f64>() / self.n.max(1) as f64;
-        // Zero until a shift was first needed, then never below SHIFT_MIN: at a wrinkled state
-        // the unshifted KKT matrix is often singular to round-off, its unpivoted LDL^T then has
-        // fewer than m negative pivots and a failed try at zero costs a factorization per step.
-        let mut shift = match self.last_shift {
-            0.0 => 0.0,
-            last => (last / SHIFT_DECREASE).max(SHIFT_MIN),
-        };
+        let mut shift = self.first_shift();
         loop {
-            self.load(h, h_values, j_values, mean_diag, shift * mean_diag);
-            match self.factorize(h).and_then(|_| self.solve(g, c, dx, lambda)) {
-                Ok(()) => {
-                    self.last_shift = shift;
-                    self.shift = shift * mean_diag;
-                    return Ok(());
-                }
-                // Round-off is cured by a tiny shift; negative curvature needs at least
-                // SHIFT_FIRST (measured on fig. 6-3: climbing x10 from 1e-9 cost 5 more
-                // factorizations at each new wrinkle).
-                Err(_) if shift < SHIFT_MAX => {
-                    shift = match (shift, self.curvature) {
-                        (_, true) => (10.0 * shift).max(SHIFT_FIRST),
-                        (0.0, false) => SHIFT_MIN,
-                        (_, false) => 10.0 * shift,
-                    };
-                }
-                Err(_) => {
-                    self.last_shift = 0.0;
-                    return Err(NotPositiveDefinite);
-                }
+            match self.step_shifted(h, h_values, j_values, g, c, dx, lambda, shift) {
+                Ok(()) => return Ok(()),
+                Err(_) => shift = self.raise(shift).ok_or(NotPositiveDefinite)?,
             }
         }
+    }
+
+    /// The shift an iteration tries first (relative to mean |diag H|): zero until a shift was
+    /// first needed, then a third of the last one but never below SHIFT_MIN: at a wrinkled state
+    /// the unshifted KKT matrix is often singular to round-off, its unpivoted LDL^T then has
+    /// fewer than m negative pivots and a failed try at zero costs a factorization per step.
+    pub fn first_shift(&self) -> f64 {
+        match self.last_shift {
+            0.0 => 0.0,
+            last => (last / SHIFT_DECREASE).max(SHIFT_MIN),
+        }
+    }
+
+    /// The next shift after `shift` failed the inertia test; None past SHIFT_MAX (and the
+    /// remembered shift is forgotten).
+    pub fn raise(&mut self, shift: f64) -> Option<f64> {
+        if shift >= SHIFT_MAX {
+            self.last_shift = 0.0;
+            return None;
+        }
+        // Round-off is cured by a tiny shift; negative curvature needs at least SHIFT_FIRST
+        // (measured on fig. 6-3: climbing x10 from 1e-9 cost 5 more factorizations at each new
+        // wrinkle).
+        Some(match (shift, self.curvature) {
+            (_, true) => (10.0 * shift).max(SHIFT_FIRST),
+            (0.0, false) => SHIFT_MIN,
+            (_, false) => 10.0 * shift,
+        })
+    }
+
+    /// The SQP step with the KKT matrix shifted by `shift` x diag(max(|H_ii|, mean |diag H|));
+    /// Err when it does not have the inertia of a stable constrained problem (or the solve is
+    /// inaccurate). Remembers a successful shift.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step_shifted(
+        &mut self,
+        h: &Pattern,
+        h_values: &[f64],
+        j_values: &[f64],
+        g: &[f64],
+        c: &[f64],
+        dx: &mut [f64],
+        lambda: &mut [f64],
+        shift: f64,
+    ) -> Result<(), NotPositiveDefinite> {
+        let mean_diag = mean_abs_diagonal(h, h_values);
+        self.load(h, h_values, j_values, mean_diag, shift * mean_diag);
+        self.factorize(h).and_then(|_| self.solve(g, c, dx, lambda))?;
+        self.last_shift = shift;
+        self.shift = shift * mean_diag;
+        Ok(())
+    }
+
+    /// The shift's metric: d(K)/d(shift) is diag(w) x mean |diag H| on the DOF block, with
+    /// w_i = max(|H_ii|, mean) / mean (dimensionless).
+    pub fn shift_weights(&self, h: &Pattern, h_values: &[f64]) -> (Vec<f64>, f64) {
+        let mean = mean_abs_diagonal(h, h_values).max(f64::MIN_POSITIVE);
+        (h.diag.iter().map(|&d| h_values[d as usize].abs().max(mean) / mean).collect(), mean)
+    }
+
+    /// With the last factorization: the DOF part of K^-1 [r; 0] (a solve on the constraints'
+    /// null space).
+    pub fn solve_null(&mut self, r: &[f64], out: &mut [f64]) -> Result<(), NotPositiveDefinite> {
+        let g: Vec<f64> = r.iter().map(|v| -v).collect();
+        let (c, mut mu) = (vec![0.0; self.m], vec![0.0; self.m]);
+        self.solve(&g, &c, out, &mut mu)
     }
 
     /// A second-order correction with the last factorization: the step that, to first order,
@@ -391,6 +432,10 @@ impl KktSystem {
         }
         Ok(())
     }
+}
+
+fn mean_abs_diagonal(h: &Pattern, h_values: &[f64]) -> f64 {
+    h.diag.iter().map(|&d| h_values[d as usize].abs()).sum::<f64>() / h.n.max(1) as f64
 }
 
 /// The scaled Jacobian by row (row r -> (DOF column, value)), read from the loaded KKT values.

@@ -18,9 +18,10 @@ mod progress;
 pub mod settings;
 pub mod settle;
 pub mod stability;
+mod trust_region;
 
 pub use elements::{AnchorElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
 pub use error::SolveError;
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};
 pub use packed::{PackedPatch, PackedState, SolverCache};
-pub use settings::{KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};
+pub use settings::{Globalization, KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};

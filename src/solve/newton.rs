@@ -44,6 +44,8 @@ pub struct FrameOutcome {
     /// remesh, before the solve (a remesh "pop" shows as a jump from the previous frame's end).
     pub start_energy: f64,
     pub start_violation: f64,
+    /// The merit after each accepted trust-region step (empty with the line search).
+    pub merits: Vec<f64>,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
     /// factorization and triangular solves, line-search energy evaluations.
     pub counters: SolveCounters,

@@ -19,6 +19,7 @@ pub struct SolverSettings {
     /// (a saddle: the flat state past the buckling load) leave it along negative curvature.
     pub stability_check: bool,
     pub stability_test: StabilityTest,
+    pub globalization: Globalization,
     pub linear: LinearSolver,
     pub kkt: KktMethod,
 }
@@ -32,6 +33,7 @@ impl Default for SolverSettings {
             projection: Projection::default(),
             stability_check: true,
             stability_test: StabilityTest::default(),
+            globalization: Globalization::default(),
             linear: LinearSolver::Direct,
             kkt: KktMethod::default(),
         }
@@ -71,6 +73,21 @@ pub enum StabilityTest {
     /// factorizations of H + sigma I (sigma x4 from 1e-6 mean |diag|) and inverse iteration;
     /// misses curvatures above -1e-9 mean |diag| (just past a critical load).
     ShiftedCholesky,
+}
+
+/// How a Newton step is made safe where the Hessian is indefinite (buckling): the step's
+/// length and the inertia-correcting shift.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq, Eq, Default)]
+pub enum Globalization {
+    /// The smallest shift of a x10 ladder (from a third of the last one) that makes the system
+    /// definite on the constraints' null space, then Armijo backtracking (H15 eq. 5.27).
+    #[default]
+    LineSearch,
+    /// A trust region on the kernel-constrained (KKT) step (More-Sorensen): the shift at least
+    /// the inertia bound and large enough that the step stays within the radius, the radius
+    /// sized by the ratio of actual to predicted merit decrease. Patches without kernels use
+    /// the line search.
+    TrustRegion,
 }
 
 /// How Newton solves H dx = -g.

@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::physics::Projection;
-use crate::solve::{KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};
+use crate::solve::{Globalization, KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};
 
 mod coupling;
 mod driver;
@@ -137,6 +137,10 @@ pub struct SolverSpec {
     /// How the stability check tests an equilibrium (`Inertia`, or the older `ShiftedCholesky`).
     #[serde(default)]
     pub stability_test: StabilityTest,
+    /// How a step is made safe where the Hessian is indefinite (`LineSearch`, or `TrustRegion`
+    /// for patches with kernels).
+    #[serde(default)]
+    pub globalization: Globalization,
     /// How Newton solves H dx = -g.
     #[serde(default)]
     pub linear: LinearSolver,
@@ -163,6 +167,7 @@ impl Default for SolverSpec {
             perturbation: None,
             stability_check: s.stability_check,
             stability_test: s.stability_test,
+            globalization: s.globalization,
             linear: s.linear,
             kkt: s.kkt,
         }
@@ -179,6 +184,7 @@ impl SolverSpec {
             projection: self.projection,
             stability_check: self.stability_check,
             stability_test: self.stability_test,
+            globalization: self.globalization,
             linear: self.linear,
             kkt: self.kkt,
         }
