@@ -174,7 +174,13 @@ impl BodySurface {
                 .collect();
             next.sort_unstable();
             next.dedup();
+            // (the rings only grow: once they stop, they cover the connected body, and a large
+            // `rings` costs no more)
+            let covered = next.len() == ring.len();
             ring = next;
+            if covered {
+                break;
+            }
         }
         let mut best = (f64::INFINITY, SurfacePoint { face: from, st: DVec2::ZERO });
         for f in ring {

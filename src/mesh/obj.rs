@@ -14,8 +14,12 @@ pub enum ObjError {
     Io(#[from] std::io::Error),
     #[error(transparent)]
     Parse(#[from] tobj::LoadError),
-    #[error("vertex {vertex} (line of the {}th `v`) is not used by any face", vertex + 1)]
-    Unreferenced { vertex: usize },
+    #[error("line {line}: vertex {vertex} is not used by any face")]
+    Unreferenced { vertex: usize, line: usize },
+    #[error("line {line}: `{keyword}` needs {count} finite numbers")]
+    NotFinite { line: usize, keyword: &'static str, count: usize },
+    #[error("no faces")]
+    NoFaces,
 }
 
 /// Loads a triangle surface. Positions are multiplied by `to_metres`; material coordinates come
@@ -46,32 +50,49 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, ObjError> {
     Ok(m)
 }
 
-/// tobj drops vertices no face uses; a mesh with such vertices is refused, so scan for them.
+/// tobj drops vertices no face uses and reads NaN and infinity as numbers; a mesh with either
+/// (or with no face) is refused, so scan for them, with line numbers.
 fn unreferenced_vertex(path: &Path) -> Result<(), ObjError> {
     let text = std::fs::read_to_string(path)?;
     let mut count = 0usize;
     let mut used = Vec::new();
-    for line in text.lines() {
+    let mut faces = 0usize;
+    for (number, line) in text.lines().enumerate() {
         let mut it = line.split_whitespace();
+        let finite = |it: std::str::SplitWhitespace, n: usize| {
+            let values: Vec<Option<f64>> =
+                it.take(n).map(|t| t.parse::<f64>().ok().filter(|v| v.is_finite())).collect();
+            values.len() == n && values.iter().all(Option::is_some)
+        };
         match it.next() {
             Some("v") => {
+                if !finite(it, 3) {
+                    return Err(ObjError::NotFinite { line: number + 1, keyword: "v", count: 3 });
+                }
                 count += 1;
-                used.push(false);
+                used.push(number + 1);
+            }
+            Some("vt") if !finite(it.clone(), 2) => {
+                return Err(ObjError::NotFinite { line: number + 1, keyword: "vt", count: 2 });
             }
             Some("f") => {
+                faces += 1;
                 for tok in it {
                     let Some(Ok(i)) = tok.split('/').next().map(str::parse::<i64>) else { continue };
                     let idx = if i < 0 { count as i64 + i } else { i - 1 };
                     if let Some(u) = usize::try_from(idx).ok().and_then(|k| used.get_mut(k)) {
-                        *u = true;
+                        *u = 0; // (used)
                     }
                 }
             }
             _ => {}
         }
     }
-    match used.iter().position(|u| !u) {
-        Some(vertex) => Err(ObjError::Unreferenced { vertex }),
+    if faces == 0 {
+        return Err(ObjError::NoFaces);
+    }
+    match used.iter().position(|&line| line != 0) {
+        Some(vertex) => Err(ObjError::Unreferenced { vertex, line: used[vertex] }),
         None => Ok(()),
     }
 }

@@ -27,6 +27,9 @@ pub struct BuiltAnchors {
     pub bind_distance: f64,
 }
 
+/// The most memory an articulation's precomputed poses may take (bytes).
+const MAX_PRECOMPUTED_BYTES: f64 = 4e9;
+
 impl Builder {
     /// Displacements of the posed layer for frames 0 to `frames` (an exact pose per weight).
     #[allow(clippy::too_many_arguments)]
@@ -54,7 +57,23 @@ impl Builder {
                 return Err(self.err(format!("{at}.pose.bend_radius"), format!("must be > 0 (got {bend_radius})")));
             }
         }
+        let (PoseSpec::Elbow { angle, .. } | PoseSpec::Fold { angle }) = pose;
+        if !(-360.0..=360.0).contains(angle) {
+            return Err(self.err(format!("{at}.pose.angle"), format!("must be in [-360, 360] degrees (got {angle:e})")));
+        }
         let rest = layer.mesh.rest();
+        // The poses are precomputed for every frame.
+        let bytes = (frames as f64 + 1.0) * rest.len() as f64 * std::mem::size_of::<DVec3>() as f64;
+        if bytes > MAX_PRECOMPUTED_BYTES {
+            let message = format!(
+                "{} frames x {} vertices of precomputed poses need {:.1} GB, more than {:.0} GB: fewer frames",
+                frames,
+                rest.len(),
+                bytes / 1e9,
+                MAX_PRECOMPUTED_BYTES / 1e9
+            );
+            return Err(self.err(at, message));
+        }
         let (lo, hi) = mesh::bounds(rest);
         let centre = 0.5 * (lo + hi);
         let keys = Keyframes(weights.to_vec());
@@ -95,8 +114,8 @@ impl Builder {
             .map(|(i, f)| {
                 let full = self.dir.join(f);
                 let field = format!("{at}.files[{i}]");
-                if !full.is_file() {
-                    return Err(SceneError::at_field(&full, &field, format!("file not found: {}", full.display())));
+                if let Some(problem) = super::meshes::not_a_file(&full) {
+                    return Err(SceneError::at_field(&full, &field, format!("file {problem}")));
                 }
                 let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 if m.rest.len() != rest.len() {

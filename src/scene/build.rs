@@ -11,20 +11,47 @@ use super::drivers::PatchContext;
 use super::error::SceneError;
 use super::schema::*;
 
+/// The largest scene file read (bytes): a scene is text; anything longer is not one (and a
+/// device such as /dev/zero would be read until memory runs out).
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+
 /// Reads, validates and builds a scene file.
 pub fn load(path: &Path) -> Result<BuiltScene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+    let text = read_text(path, MAX_SCENE_BYTES).map_err(|message| SceneError {
         file: path.to_path_buf(),
         position: None,
         field: None,
-        message: format!("cannot read the scene file: {e}"),
+        message: format!("cannot read the scene file: {message}"),
     })?;
     load_str(&text, path)
+}
+
+/// A text file of at most `limit` bytes; errors name what is wrong (a directory, too long, the
+/// line of the first byte that is not UTF-8).
+pub fn read_text(path: &Path, limit: u64) -> Result<String, String> {
+    use std::io::Read;
+    if path.is_dir() {
+        return Err("it is a directory".into());
+    }
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let mut bytes = Vec::new();
+    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| e.to_string())?;
+    if bytes.len() as u64 > limit {
+        return Err(format!("longer than {} MiB", limit >> 20));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = 1 + good.iter().filter(|&&b| b == b'\n').count();
+        let column = 1 + good.iter().rev().take_while(|&&b| b != b'\n').count();
+        format!("not UTF-8 text (line {line}, column {column})")
+    })
 }
 
 /// Parses, validates and builds a scene given as text; `path` names it in errors and anchors
 /// relative asset paths.
 pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
+    // (a byte-order mark, as some Windows editors write)
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
     let scene: Scene = options.from_str(text).map_err(|e| SceneError {
         file: path.to_path_buf(),
@@ -34,6 +61,14 @@ pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
     })?;
     Builder { file: path.to_path_buf(), dir: path.parent().map(Path::to_path_buf).unwrap_or_default() }.build(scene)
 }
+
+/// The longest name of a scene, patch or layer.
+const MAX_NAME: usize = 64;
+/// The perturbation's noise cell (m), at least and at most.
+const MIN_CELL: f64 = 1e-9;
+const MAX_CELL: f64 = 1e3;
+/// The longest simulated time (s): a time written to the outputs stays a finite number.
+const MAX_SCENE_TIME: f64 = 1e9;
 
 pub(super) struct Builder {
     pub(super) file: PathBuf,
@@ -57,9 +92,17 @@ impl Builder {
                 self.err("frame_time", format!("must be a positive number of seconds (got {})", scene.frame_time))
             );
         }
+        if !(0.0..=MAX_SCENE_TIME).contains(&(scene.frame_time * scene.frames as f64)) {
+            return Err(self.err(
+                "frame_time",
+                format!("frames x frame_time must be at most {MAX_SCENE_TIME:e} s (got {:e})", scene.frame_time),
+            ));
+        }
+        self.check_name("name", &scene.name)?;
         let mut names = HashMap::new();
         let mut patches = Vec::new();
         for (pi, p) in scene.patches.iter().enumerate() {
+            self.check_name(format!("patches[{pi}].name"), &p.name)?;
             if let Some(prev) = names.insert(p.name.clone(), pi) {
                 return Err(self.err(
                     format!("patches[{pi}].name"),
@@ -71,6 +114,27 @@ impl Builder {
         Ok(BuiltScene { path: self.file.clone(), scene, patches })
     }
 
+    /// Names become output folders and file names: a safe character set, no path separator,
+    /// no `..`, no hidden file.
+    pub(super) fn check_name(&self, field: impl Into<String>, name: &str) -> Result<(), SceneError> {
+        let safe = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
+        let ok = (1..=MAX_NAME).contains(&name.len())
+            && name.chars().all(safe)
+            && !name.starts_with(['.', '-'])
+            && !name.contains("..");
+        if ok {
+            return Ok(());
+        }
+        Err(self.err(
+            field,
+            format!(
+                "\"{}\" is not a usable name: it names output folders and files, so it must be 1-{MAX_NAME} \
+                 letters, digits, '_', '-' or '.', not starting with '.' or '-'",
+                name.escape_debug()
+            ),
+        ))
+    }
+
     fn patch(&self, scene: &Scene, pi: usize, p: &PatchSpec) -> Result<BuiltPatch, SceneError> {
         let at = format!("patches[{pi}] (\"{}\")", p.name);
         let len = scene.units.length.to_si();
@@ -79,8 +143,9 @@ impl Builder {
             return Err(self.err(format!("{at}.layers"), "a patch needs at least one layer"));
         }
         let s = &p.solver;
-        if s.tolerance.is_nan() || s.tolerance <= 0.0 {
-            return Err(self.err(format!("{at}.solver.tolerance"), format!("must be > 0 (got {})", s.tolerance)));
+        if !(s.tolerance > 0.0 && s.tolerance < 1.0) {
+            let message = format!("must be a relative residual in (0, 1) (got {:e})", s.tolerance);
+            return Err(self.err(format!("{at}.solver.tolerance"), message));
         }
         if s.max_iterations == 0 {
             return Err(self.err(format!("{at}.solver.max_iterations"), "must be at least 1"));
@@ -93,10 +158,12 @@ impl Builder {
             }
             pert.amplitude *= len;
             if let Some(cell) = &mut pert.cell {
-                if !(*cell > 0.0 && cell.is_finite()) {
-                    return Err(self.err(format!("{at}.solver.perturbation.cell"), "must be > 0"));
-                }
                 *cell *= len;
+                // (material coordinates over the cell stay finite numbers for the noise field)
+                if !(*cell >= MIN_CELL && *cell <= MAX_CELL) {
+                    let message = format!("must be {MIN_CELL:e} to {MAX_CELL:e} m (got {:e} m)", *cell);
+                    return Err(self.err(format!("{at}.solver.perturbation.cell"), message));
+                }
             }
         }
         let offset = DVec3::new(p.offset.0, p.offset.1, p.offset.2) * len;
@@ -104,6 +171,7 @@ impl Builder {
         let mut index = HashMap::new();
         for (li, l) in p.layers.iter().enumerate() {
             let lat = format!("{at}.layers[{li}] (\"{}\")", l.name);
+            self.check_name(format!("{lat}.name"), &l.name)?;
             if let Some(prev) = index.insert(l.name.clone(), li) {
                 return Err(self.err(format!("{lat}.name"), format!("also the name of layers[{prev}]")));
             }
@@ -131,6 +199,10 @@ impl Builder {
             .map(|(ci, c)| self.coupling(&format!("{at}.couplings[{ci}]"), c, &cx))
             .collect::<Result<_, _>>()?;
         let anchors = p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &cx)).transpose()?;
-        Ok(BuiltPatch { name: p.name.clone(), solver, perturbation, layers, drivers, couplings, anchors })
+        let patch = BuiltPatch { name: p.name.clone(), solver, perturbation, layers, drivers, couplings, anchors };
+        if let Some((li, message)) = super::spawn::geometry_error(&patch) {
+            return Err(self.err(format!("{at}.layers[{li}] (\"{}\").mesh", patch.layers[li].name), message));
+        }
+        Ok(patch)
     }
 }

@@ -344,6 +344,9 @@ impl Builder {
     /// Loads a greyscale map (relative to the scene file) spanning the mesh's material rectangle.
     pub(super) fn weight_map(&self, field: &str, path: &str, mesh: &LayerMesh) -> Result<WeightMap, SceneError> {
         let full = self.dir.join(path);
+        if let Some(problem) = super::meshes::not_a_file(&full) {
+            return Err(SceneError::at_field(&full, field, format!("map image {problem}")));
+        }
         let img = image::open(&full)
             .map_err(|e| SceneError::at_field(&full, field, format!("cannot read the map image: {e}")))?
             .to_luma16();

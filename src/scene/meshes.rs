@@ -55,6 +55,7 @@ impl Builder {
                 if cells.0 == 0 || cells.1 == 0 {
                     return Err(self.err(format!("{field}.cells"), "needs at least one cell in each direction"));
                 }
+                self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64 + 1, cells.1 as u64 + 1, 1])?;
                 LayerMesh::Surface(mesh::grid(DVec2::new(size.0, size.1) * len, *cells, *pattern, z * len))
             }
             MeshSpec::TetSlab { size, cells, depth, elements, top, grading } => {
@@ -70,6 +71,8 @@ impl Builder {
                 if *elements == 0 {
                     return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
                 }
+                let counts = [cells.0 as u64 + 1, cells.1 as u64 + 1, *elements as u64 + 1];
+                self.vertex_budget(&format!("{field}.cells"), counts)?;
                 let size = DVec2::new(size.0, size.1) * len;
                 positive(*grading, "grading")?;
                 let (m, _) = mesh::tet_slab(size, *cells, top * len, &[(depth * len, *elements, *grading)]);
@@ -87,12 +90,8 @@ impl Builder {
                     return Err(self.err(&field, "OBJ meshes are surfaces: use them for shell or kinematic layers"));
                 }
                 let full = self.dir.join(path);
-                if !full.is_file() {
-                    return Err(SceneError::at_field(
-                        &full,
-                        &field,
-                        format!("mesh file not found: {}", full.display()),
-                    ));
+                if let Some(problem) = not_a_file(&full) {
+                    return Err(SceneError::at_field(&full, &field, format!("mesh file {problem}")));
                 }
                 let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
@@ -107,6 +106,8 @@ impl Builder {
                     return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
                 }
                 let (bi, base) = base_slab(layer)?;
+                let counts = [base.cells.0 as u64 + 1, base.cells.1 as u64 + 1, *elements as u64 + 1];
+                self.vertex_budget(&format!("{field}.elements"), counts)?;
                 let new_top = base.top - base.origin.z + depth * len;
                 positive(*grading, "grading")?;
                 let (m, _) = mesh::tet_slab(base.size, base.cells, new_top, &[(depth * len, *elements, *grading)]);
@@ -135,6 +136,7 @@ impl Builder {
                 if cells.0 < 3 || cells.1 == 0 {
                     return Err(self.err(format!("{field}.cells"), "needs at least 3 cells around and 1 along"));
                 }
+                self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64, cells.1 as u64 + 1, 1])?;
                 LayerMesh::Surface(mesh::bodies::tube(radius * len, length * len, cells.0, cells.1))
             }
             MeshSpec::Creature { radius, subdivisions } => {
@@ -186,5 +188,38 @@ impl Builder {
             return Err(self.err(field, "this mesh is a surface: use it for shell or kinematic layers"));
         }
         Ok(())
+    }
+}
+
+/// The most vertices a generated mesh may have: the 3D patch of H15 table 6.4 (0.31 M vertices)
+/// peaks at 10.3 GB, so 10 M vertices are already far past any machine's memory.
+pub const MAX_GENERATED_VERTICES: u64 = 10_000_000;
+
+impl Builder {
+    /// Refuses a generated mesh of more than MAX_GENERATED_VERTICES vertices (counts per axis),
+    /// before it is generated.
+    fn vertex_budget(&self, field: &str, counts: [u64; 3]) -> Result<(), SceneError> {
+        let total = counts.iter().try_fold(1u64, |a, &c| a.checked_mul(c));
+        match total {
+            Some(n) if n <= MAX_GENERATED_VERTICES => Ok(()),
+            _ => Err(self.err(
+                field,
+                format!(
+                    "would generate {} vertices, more than the {MAX_GENERATED_VERTICES} a patch can hold in memory",
+                    total.map_or("over 1.8e19".to_string(), |n| n.to_string())
+                ),
+            )),
+        }
+    }
+}
+
+/// Why an asset path is not a readable file (None when it is one): not found, a directory, or
+/// not a regular file (a device or a pipe).
+pub(super) fn not_a_file(path: &std::path::Path) -> Option<String> {
+    match std::fs::metadata(path) {
+        Err(_) => Some(format!("not found: {}", path.display())),
+        Ok(m) if m.is_dir() => Some(format!("{} is a directory", path.display())),
+        Ok(m) if !m.is_file() => Some(format!("{} is not a regular file", path.display())),
+        Ok(_) => None,
     }
 }

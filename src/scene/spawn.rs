@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
-use glam::{DMat3, DVec2};
+use glam::{DMat3, DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 
 use super::built::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
@@ -28,26 +28,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     let patch = world.spawn((Patch { name: p.name.clone(), index }, p.solver.clone())).id();
     let mut layer_vertices: Vec<Vec<Entity>> = Vec::new();
     let mut layers = Vec::new();
-    let mut fixed: Vec<Vec<[bool; 3]>> =
-        p.layers.iter().map(|l| vec![[l.kind == LayerKind::Kinematic; 3]; l.mesh.rest().len()]).collect();
-    for d in &p.drivers {
-        match d {
-            BuiltDriver::Pin { layer, vertices, dofs } => {
-                for &v in vertices {
-                    let f = &mut fixed[*layer][v as usize];
-                    for k in 0..3 {
-                        f[k] |= dofs[k];
-                    }
-                }
-            }
-            BuiltDriver::PlaneStrain { layers, axis, .. } => {
-                for &l in layers {
-                    fixed[l].iter_mut().for_each(|f| f[*axis] = true);
-                }
-            }
-            _ => {}
-        }
-    }
+    let mut fixed = prescribed(p);
     // Shared vertices belong to an earlier layer: their pins and masses go to the owner.
     let mut mass: Vec<Vec<f64>> = p.layers.iter().map(lumped_mass).collect();
     for li in (0..p.layers.len()).rev() {
@@ -63,12 +44,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         }
     }
     let mut all_rest = Vec::new();
-    let mut rng = p.perturbation.map(|q| (q, rand_pcg::Pcg64::seed_from_u64(q.seed)));
-    for (li, l) in p.layers.iter().enumerate() {
-        let mut l = l.clone();
-        if let (Some((q, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
-            perturb(m, &fixed[li], q, rng);
-        }
+    for (li, l) in final_layers(p, &fixed).into_iter().enumerate() {
         let owners: Vec<Option<Entity>> =
             l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
         let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li], &mass[li], &owners);
@@ -357,10 +333,8 @@ fn spawn_layer(
         LayerMesh::Volume(m) => {
             let scale = modulus(m.tets.len());
             for (ti, t) in m.tets.iter().enumerate() {
-                let centre = t.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 4.0;
-                let f0 = l.prestrain.as_ref().map(|p| DMat3::from_diagonal(p.stretch_at(centre)));
-                let rest = TetRest::from_rest(t.map(|i| m.rest[i as usize]), f0.unwrap_or(DMat3::IDENTITY))
-                    .expect("generated tets are valid");
+                let (rest, f0) = tet_rest(l, &m.rest, &uv, t);
+                let rest = rest.expect("checked tets");
                 let mut e = world.spawn((TetVerts(t.map(|i| verts[i as usize])), TetOf(layer), TetRestShape(rest)));
                 if let Some(f0) = f0 {
                     e.insert(TetPrestrain(f0));
@@ -372,6 +346,99 @@ fn spawn_layer(
         }
     }
     (layer, verts)
+}
+
+/// Which coordinates of each layer's vertices are prescribed: kinematic layers, pins, plane strain.
+fn prescribed(p: &BuiltPatch) -> Vec<Vec<[bool; 3]>> {
+    let mut fixed: Vec<Vec<[bool; 3]>> =
+        p.layers.iter().map(|l| vec![[l.kind == LayerKind::Kinematic; 3]; l.mesh.rest().len()]).collect();
+    for d in &p.drivers {
+        match d {
+            BuiltDriver::Pin { layer, vertices, dofs } => {
+                for &v in vertices {
+                    let f = &mut fixed[*layer][v as usize];
+                    for k in 0..3 {
+                        f[k] |= dofs[k];
+                    }
+                }
+            }
+            BuiltDriver::PlaneStrain { layers, axis, .. } => {
+                for &l in layers {
+                    fixed[l].iter_mut().for_each(|f| f[*axis] = true);
+                }
+            }
+            _ => {}
+        }
+    }
+    fixed
+}
+
+/// The layers as spawned: the shells' rest shapes with the patch's perturbation.
+fn final_layers(p: &BuiltPatch, fixed: &[Vec<[bool; 3]>]) -> Vec<BuiltLayer> {
+    let mut rng = p.perturbation.map(|q| (q, rand_pcg::Pcg64::seed_from_u64(q.seed)));
+    let mut layers = p.layers.clone();
+    for (li, l) in layers.iter_mut().enumerate() {
+        if let (Some((q, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
+            perturb(m, &fixed[li], q, rng);
+        }
+    }
+    layers
+}
+
+/// The largest coordinate of a rest position (m): beyond it differences of positions lose the
+/// digits a patch's elements need.
+const MAX_COORDINATE: f64 = 1e3;
+
+/// `check` on the geometry `spawn` builds (after the offset and the perturbation): every rest
+/// position finite and within MAX_COORDINATE, every shell face and every tet with a valid rest
+/// shape. Returns the layer index and what is wrong.
+pub(super) fn geometry_error(p: &BuiltPatch) -> Option<(usize, String)> {
+    let layers = final_layers(p, &prescribed(p));
+    for (li, l) in layers.iter().enumerate() {
+        let rest = l.mesh.rest();
+        if let Some(v) = rest.iter().position(|x| !(0.0..=MAX_COORDINATE).contains(&x.abs().max_element())) {
+            let message = format!(
+                "vertex {v} lies at {:?} m, outside +-{MAX_COORDINATE} m or not finite (with the patch's \
+                 offset and perturbation applied)",
+                rest[v]
+            );
+            return Some((li, message));
+        }
+        let uv = l.mesh.material_positions();
+        match &l.mesh {
+            LayerMesh::Surface(m) if l.kind == LayerKind::Shell => {
+                let layer_rest = shell_rest(l);
+                let bad = m
+                    .faces
+                    .iter()
+                    .position(|f| layer_rest.face(f.map(|i| m.rest[i as usize]), f.map(|i| uv[i as usize])).is_none());
+                if let Some(fi) = bad {
+                    let message = format!(
+                        "face {fi} is degenerate once the patch's offset and perturbation are applied \
+                         (a perturbation amplitude or offset too large for the mesh?)"
+                    );
+                    return Some((li, message));
+                }
+            }
+            LayerMesh::Volume(m) => {
+                if let Some(ti) = m.tets.iter().position(|t| tet_rest(l, &m.rest, &uv, t).0.is_none()) {
+                    let message = format!(
+                        "tet {ti} is degenerate or inverted (a depth, size or grading too small or too large?)"
+                    );
+                    return Some((li, message));
+                }
+            }
+            LayerMesh::Surface(_) => {}
+        }
+    }
+    None
+}
+
+/// A tet's rest shape, with the layer's prestrain F0 at its centre when it has one.
+fn tet_rest(l: &BuiltLayer, rest: &[DVec3], uv: &[DVec2], t: &[u32; 4]) -> (Option<TetRest>, Option<DMat3>) {
+    let centre = t.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 4.0;
+    let f0 = l.prestrain.as_ref().map(|p| DMat3::from_diagonal(p.stretch_at(centre)));
+    (TetRest::from_rest(t.map(|i| rest[i as usize]), f0.unwrap_or(DMat3::IDENTITY)), f0)
 }
 
 /// What a shell layer's face and hinge rest data depend on.

@@ -82,6 +82,9 @@ impl Builder {
                 TargetShape::Obj(path) => {
                     let full = self.dir.join(path);
                     let field = format!("{tat}.shape");
+                    if let Some(problem) = super::meshes::not_a_file(&full) {
+                        return Err(SceneError::at_field(&full, &field, format!("target file {problem}")));
+                    }
                     let m =
                         mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                     if m.rest.len() != rest.len() {

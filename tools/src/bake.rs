@@ -35,6 +35,19 @@ pub struct Baked {
 /// The frames to bake: the requested ones, plus per requested weight the first frame where the
 /// first patch's first blend-shape target is closest to it.
 pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, String> {
+    if let Some(w) = req.weights.iter().find(|w| !w.is_finite()) {
+        return Err(format!("--weights must be finite numbers (got {w})"));
+    }
+    if let Some(b) = req.blends.iter().find(|b| !(0.0..=1.0).contains(*b)) {
+        return Err(format!("--blend weights must be in [0, 1] (got {b})"));
+    }
+    if let Some(name) = &req.layer {
+        let layers = scene.patches.iter().flat_map(|p| &p.layers);
+        if !layers.clone().any(|l| l.name == *name) {
+            let names: Vec<&str> = layers.map(|l| l.name.as_str()).collect();
+            return Err(format!("--layer: no layer named \"{name}\" (the scene's: {})", names.join(", ")));
+        }
+    }
     let mut frames = req.frames.clone();
     if !req.weights.is_empty() {
         let blend = scene

@@ -216,14 +216,25 @@ fn check(path: &Path) -> ExitCode {
     }
 }
 
+/// The largest `--threads`, as a multiple of the machine's cores (more only costs memory).
+const MAX_THREADS_PER_CORE: usize = 16;
+/// Exit status of an interrupted run (128 + SIGINT, as shells report it).
+const INTERRUPTED: u8 = 130;
+
 fn run(args: RunArgs) -> ExitCode {
     let scene = match load(&args.scene) {
         Ok(s) => s,
         Err(code) => return code,
     };
+    if args.frames == Some(0) {
+        eprintln!("error: --frames must be at least 1");
+        return ExitCode::from(2);
+    }
     if let Some(n) = args.threads {
-        if n == 0 || rayon::ThreadPoolBuilder::new().num_threads(n).build_global().is_err() {
-            eprintln!("error: --threads must be at least 1");
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        let max = MAX_THREADS_PER_CORE * cores;
+        if n == 0 || n > max || rayon::ThreadPoolBuilder::new().num_threads(n).build_global().is_err() {
+            eprintln!("error: --threads must be in 1..={max} ({MAX_THREADS_PER_CORE} per core; got {n})");
             return ExitCode::from(2);
         }
     }
@@ -231,6 +242,23 @@ fn run(args: RunArgs) -> ExitCode {
     if let Err(e) = std::fs::create_dir_all(&out) {
         eprintln!("error: cannot create the output folder {}: {e}", out.display());
         return ExitCode::from(2);
+    }
+    if let Err(e) = skinsim_systems::log::clear_obj_frames(&out) {
+        eprintln!("error: cannot clear the earlier OBJ frames in {}: {e}", out.display());
+        return ExitCode::from(2);
+    }
+    // Ctrl-C (or SIGTERM) ends the run after the frame being computed, with every output
+    // closed; a second one ends it at once.
+    let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    {
+        let flag = interrupted.clone();
+        let _ = ctrlc::set_handler(move || {
+            if flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+                eprintln!("\nerror: interrupted again: stopping now");
+                std::process::exit(INTERRUPTED as i32);
+            }
+            eprintln!("\ninterrupted: finishing the current frame (Ctrl-C again to stop now)");
+        });
     }
     let frames = args.frames.unwrap_or(scene.scene.frames);
     let mut sim = Simulation::new(&scene);
@@ -247,11 +275,12 @@ fn run(args: RunArgs) -> ExitCode {
     if args.export.contains(&Export::Obj) || scene.scene.output.obj {
         sim.world.insert_resource(ObjExport(out.clone()));
     }
+    let stats_path = out.join("stats.jsonl");
     let mut stats = if scene.scene.output.stats {
-        match std::fs::File::create(out.join("stats.jsonl")) {
+        match std::fs::File::create(&stats_path) {
             Ok(f) => Some(std::io::BufWriter::new(f)),
             Err(e) => {
-                eprintln!("error: cannot write {}: {e}", out.join("stats.jsonl").display());
+                eprintln!("error: cannot write {}: {e}", stats_path.display());
                 return ExitCode::from(2);
             }
         }
@@ -267,11 +296,16 @@ fn run(args: RunArgs) -> ExitCode {
         let frame = sim.step();
         if let Some(w) = stats.as_mut() {
             let line = serde_json::to_string(&frame).expect("stats serialize");
-            if writeln!(w, "{line}").and_then(|_| w.flush()).is_err() {
-                eprintln!("error: cannot write stats.jsonl");
+            if let Err(e) = writeln!(w, "{line}").and_then(|_| w.flush()) {
+                bar.abandon();
+                eprintln!("error: cannot write {}: {e}", stats_path.display());
                 status = ExitCode::from(1);
                 break;
             }
+        }
+        // (a killed run keeps in its recording every frame stats.jsonl has)
+        if let Some(rec) = &rec {
+            rec.flush_blocking().ok();
         }
         let iters: u32 = frame.patches.iter().map(|p| p.newton_iterations).sum();
         bar.set_message(format!("{iters} Newton its, {:.0} ms/frame", frame.total_ms()));
@@ -284,6 +318,17 @@ fn run(args: RunArgs) -> ExitCode {
         }
         for p in frame.patches.iter().filter(|p| !p.converged) {
             unconverged.push(format!("frame {} patch \"{}\" (residual {:.2e})", frame.frame, p.name, p.residual));
+        }
+        if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
+            bar.abandon();
+            eprintln!(
+                "error: interrupted after frame {}; frames 1-{} are complete in {}",
+                frame.frame,
+                frame.frame,
+                out.display()
+            );
+            status = ExitCode::from(INTERRUPTED);
+            break;
         }
     }
     bar.finish_and_clear();
@@ -398,6 +443,10 @@ fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
 
 fn timing(scenes: &[PathBuf], frames: Option<u32>, out: &Path) -> ExitCode {
     use skinsim_tools::timing;
+    if scenes.is_empty() || frames == Some(0) {
+        eprintln!("error: timing needs at least one scene and --frames of at least 1");
+        return ExitCode::from(2);
+    }
     let mut rows = Vec::new();
     for path in scenes {
         eprintln!("timing {} ...", path.display());

@@ -1,0 +1,186 @@
+//! Issue 22: a fuzzer over scene text. proptest mutates the shipped scenes (numbers and strings
+//! replaced by hostile values, lines deleted or repeated, the text cut short); each mutant goes
+//! through load -> build and, when it loads and is small, spawn and one frame. No stage may
+//! panic (proptest reports and shrinks any mutant that does). The case count is bounded for the
+//! suite (`SKINSIM_FUZZ_CASES`, default 400); a longer run is
+//! `SKINSIM_FUZZ_CASES=20000 cargo test --release --test fuzz_scenes`.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use proptest::prelude::*;
+use skinsim::scene;
+use skinsim_systems::Simulation;
+
+/// Mutants with more vertices than this are loaded but not stepped (the suite stays quick).
+const STEP_VERTICES: usize = 20_000;
+
+const NUMBERS: &[&str] = &[
+    "0",
+    "-1",
+    "0.0",
+    "-0.0",
+    "1e-300",
+    "1e300",
+    "1e308",
+    "-1e308",
+    "inf",
+    "-inf",
+    "NaN",
+    "4294967295",
+    "3",
+    "0.5",
+    "1.0",
+    "2",
+];
+const STRINGS: &[&str] = &["", "../../x", "/abs/path", "a/b", "..", "nosuch", "base", "skin", "\u{feff}"];
+
+/// The shipped scenes small enough to run a frame of, with their texts.
+fn seeds() -> &'static [(PathBuf, String)] {
+    static SEEDS: std::sync::OnceLock<Vec<(PathBuf, String)>> = std::sync::OnceLock::new();
+    SEEDS.get_or_init(|| {
+        let mut files = Vec::new();
+        collect(&common::scene_path(""), &mut files);
+        files.sort();
+        files
+            .into_iter()
+            .filter_map(|p| {
+                let text = std::fs::read_to_string(&p).ok()?;
+                let built = scene::load_str(&text, &p).ok()?;
+                (vertices(&built) <= STEP_VERTICES).then_some((p, text))
+            })
+            .collect()
+    })
+}
+
+fn collect(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            collect(&p, out);
+        } else if p.extension().is_some_and(|x| x == "ron") {
+            out.push(p);
+        }
+    }
+}
+
+fn vertices(s: &scene::BuiltScene) -> usize {
+    s.patches.iter().flat_map(|p| &p.layers).map(|l| l.mesh.rest().len()).sum()
+}
+
+#[derive(Clone, Debug)]
+enum Mutation {
+    Number { nth: usize, value: usize },
+    Text { nth: usize, value: usize },
+    DeleteLine(usize),
+    RepeatLine(usize),
+    Cut(usize),
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        4 => (any::<usize>(), 0..NUMBERS.len()).prop_map(|(nth, value)| Mutation::Number { nth, value }),
+        2 => (any::<usize>(), 0..STRINGS.len()).prop_map(|(nth, value)| Mutation::Text { nth, value }),
+        1 => any::<usize>().prop_map(Mutation::DeleteLine),
+        1 => any::<usize>().prop_map(Mutation::RepeatLine),
+        1 => any::<usize>().prop_map(Mutation::Cut),
+    ]
+}
+
+/// Byte ranges [start, end) in a text.
+type Spans = Vec<(usize, usize)>;
+
+/// Byte ranges of the number literals and of the string literals' contents.
+fn tokens(text: &str) -> (Spans, Spans) {
+    let (mut numbers, mut strings) = (Vec::new(), Vec::new());
+    let b = text.as_bytes();
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'/' && b.get(i + 1) == Some(&b'/') {
+            while i < b.len() && b[i] != b'\n' {
+                i += 1;
+            }
+        } else if b[i] == b'"' {
+            let start = i + 1;
+            i += 1;
+            while i < b.len() && b[i] != b'"' {
+                i += 1;
+            }
+            strings.push((start, i));
+            i += 1;
+        } else if b[i].is_ascii_digit() && (i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_')) {
+            let start = if i > 0 && b[i - 1] == b'-' { i - 1 } else { i };
+            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'.' || b[i] == b'-') {
+                i += 1;
+            }
+            numbers.push((start, i));
+        } else {
+            i += 1;
+        }
+    }
+    (numbers, strings)
+}
+
+fn apply(text: &str, m: &Mutation) -> String {
+    let (numbers, strings) = tokens(text);
+    let replace = |spans: &[(usize, usize)], nth: usize, value: &str| {
+        if spans.is_empty() {
+            return text.to_string();
+        }
+        let (a, z) = spans[nth % spans.len()];
+        format!("{}{value}{}", &text[..a], &text[z..])
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    match *m {
+        Mutation::Number { nth, value } => replace(&numbers, nth, NUMBERS[value]),
+        Mutation::Text { nth, value } => replace(&strings, nth, STRINGS[value]),
+        Mutation::DeleteLine(k) => {
+            let k = k % lines.len().max(1);
+            lines.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, l)| *l).collect::<Vec<_>>().join("\n")
+        }
+        Mutation::RepeatLine(k) => {
+            let k = k % lines.len().max(1);
+            let mut v = lines.clone();
+            v.insert(k, lines[k]);
+            v.join("\n")
+        }
+        Mutation::Cut(k) => {
+            let mut k = k % text.len().max(1);
+            while !text.is_char_boundary(k) {
+                k -= 1;
+            }
+            text[..k].to_string()
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("SKINSIM_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(400),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn mutated_scenes_never_panic(seed in any::<usize>(), mutations in prop::collection::vec(mutation(), 1..4)) {
+        let seeds = seeds();
+        let (path, original) = &seeds[seed % seeds.len()];
+        let text = mutations.iter().fold(original.clone(), |t, m| apply(&t, m));
+        if let Ok(built) = scene::load_str(&text, path) {
+            if vertices(&built) <= STEP_VERTICES {
+                let mut sim = Simulation::new(&built);
+                sim.step();
+            }
+        }
+    }
+}
+
+#[test]
+fn the_fuzzer_seeds_cover_the_three_methods() {
+    let names: Vec<String> = seeds().iter().map(|(p, _)| p.display().to_string()).collect();
+    for method in ["lk14", "kck18", "h15"] {
+        assert!(names.iter().any(|n| n.contains(method)), "no {method} seed in {names:?}");
+    }
+    assert!(names.len() >= 20, "{} seeds", names.len());
+}

@@ -1,0 +1,295 @@
+//! Issue 22: the `skinsim` binary against hostile and careless input. Bad input exits 2 with
+//! the file and field named, never panics, writes nothing outside the output folder; a rerun
+//! keeps only its own frames; an interrupted run says so, keeps its frames and exits 130.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn skinsim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_skinsim"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("skinsim-hostile-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A small film on a base, compressed; `frames` frames; names and solver fields substitutable.
+fn scene(scene_name: &str, patch: &str, layer: &str, solver: &str, frames: u32) -> String {
+    format!(
+        r#"Scene(name: "{scene_name}", frames: {frames}, patches: [Patch(name: "{patch}",
+            solver: (projection: Adaptive, perturbation: (amplitude: 0.001, seed: 1){solver}),
+            layers: [
+                Layer(name: "base", kind: Kinematic, mesh: Grid(size: (8.0, 2.0), cells: (16, 4))),
+                Layer(name: "{layer}", kind: Shell, mesh: Grid(size: (8.0, 2.0), cells: (16, 4)),
+                      material: (young: 10.0, poisson: 0.3, thickness: 0.1), bending: (model: Tan)),
+            ],
+            drivers: [
+                Compress(layers: ["base", "{layer}"], keyframes: [(0, 0.0), (8, 0.05)]),
+                Attach(layer: "{layer}", to: "base", stiffness: 0.0056),
+            ],
+        )])"#
+    )
+}
+
+fn good(frames: u32) -> String {
+    scene("hostile", "sheet", "film", "", frames)
+}
+
+/// Exit status 2, no panic, and every word in stderr.
+fn refused(out: &Output, words: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(!err.contains("panicked") && !err.contains("internal error"), "{err}");
+    for w in words {
+        assert!(err.contains(w), "\"{w}\" not in: {err}");
+    }
+}
+
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    let mut v = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            v.extend(files_under(&p));
+        } else {
+            v.push(p);
+        }
+    }
+    v.sort();
+    v
+}
+
+#[test]
+fn names_that_would_escape_the_output_folder_are_refused_and_nothing_is_written() {
+    let d = scratch("names");
+    let bad = [
+        ("scene", scene("../../escape", "sheet", "film", "", 2), "name"),
+        ("patch", scene("x", "/tmp/abs", "film", "", 2), "patches[0].name"),
+        ("layer", scene("x", "sheet", "a/../../b", "", 2), ".name"),
+        ("hidden", scene("x", "sheet", "..", "", 2), ".name"),
+    ];
+    for (tag, text, field) in bad {
+        let path = write(&d, &format!("{tag}.ron"), &text);
+        let words = [format!("{tag}.ron"), field.to_string(), "not a usable name".to_string()];
+        let words: Vec<&str> = words.iter().map(String::as_str).collect();
+        refused(&skinsim().arg("check").arg(&path).output().unwrap(), &words);
+        refused(&skinsim().arg("run").arg("--out").arg(d.join("out")).arg(&path).output().unwrap(), &words);
+    }
+    // Only the scene files themselves: no output folder, nothing beside or above it.
+    let written: Vec<String> =
+        files_under(&d).iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    assert_eq!(written, ["hidden.ron", "layer.ron", "patch.ron", "scene.ron"]);
+    assert!(!d.parent().unwrap().join("escape").exists());
+}
+
+#[test]
+fn unreadable_scene_files_are_refused_with_the_reason() {
+    let d = scratch("files");
+    // A byte-order mark is accepted.
+    let bom = write(&d, "bom.ron", &format!("\u{feff}{}", good(2)));
+    let out = skinsim().arg("check").arg(&bom).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    // Invalid UTF-8: the line and column of the first bad byte.
+    let mut bytes = good(2).into_bytes();
+    let second_line = bytes.iter().position(|&b| b == b'\n').unwrap() + 3;
+    bytes[second_line] = 0xff;
+    let utf8 = d.join("utf8.ron");
+    std::fs::write(&utf8, bytes).unwrap();
+    refused(&skinsim().arg("check").arg(&utf8).output().unwrap(), &["utf8.ron", "not UTF-8", "line 2, column 3"]);
+    // A directory, and a device that never ends.
+    refused(&skinsim().arg("check").arg(&d).output().unwrap(), &["is a directory"]);
+    if Path::new("/dev/zero").exists() {
+        refused(&skinsim().arg("check").arg("/dev/zero").output().unwrap(), &["longer than 16 MiB"]);
+    }
+}
+
+#[test]
+fn numbers_out_of_range_are_refused_at_check() {
+    let d = scratch("numbers");
+    let cases = [
+        ("tolerance", good(2).replace("seed: 1)", "seed: 1), tolerance: inf"), "solver.tolerance"),
+        ("tolerance_one", good(2).replace("seed: 1)", "seed: 1), tolerance: 1.0"), "solver.tolerance"),
+        ("frame_time", good(2).replace("frames: 2,", "frames: 2, frame_time: 1e308,"), "frame_time"),
+    ];
+    for (tag, text, field) in cases {
+        let path = write(&d, &format!("{tag}.ron"), &text);
+        refused(&skinsim().arg("check").arg(&path).output().unwrap(), &[field]);
+    }
+}
+
+#[test]
+fn non_finite_obj_coordinates_are_refused_with_their_line() {
+    let d = scratch("obj");
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt NaN 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+    write(&d, "nan_vt.obj", obj);
+    write(&d, "inf_v.obj", &obj.replace("v 1 0 0", "v 1 inf 0"));
+    write(&d, "empty.obj", "# nothing\n");
+    for (file, words) in
+        [("nan_vt.obj", vec!["nan_vt.obj", "line 5", "vt"]), ("inf_v.obj", vec!["inf_v.obj", "line 2"])]
+    {
+        let text = good(2).replace(
+            "Layer(name: \"base\", kind: Kinematic, mesh: Grid(size: (8.0, 2.0), cells: (16, 4))),",
+            &format!("Layer(name: \"base\", kind: Kinematic, mesh: Obj(path: \"{file}\")),"),
+        );
+        let path = write(&d, &format!("{file}.ron"), &text);
+        refused(&skinsim().arg("check").arg(&path).output().unwrap(), &words);
+    }
+    // `analyze` on a folder whose frame has no face.
+    refused(&skinsim().arg("analyze").arg(&d).output().unwrap(), &["no faces"]);
+}
+
+#[test]
+fn attachment_springs_on_a_remeshed_layer_are_refused_with_the_field() {
+    let d = scratch("attach");
+    let remesh = "bending: (model: Tan), remesh: Some((size_min: 0.1, size_max: 1.0, refine_angle: 0.3, refine_compression: 0.2)))";
+    let text = good(3).replace("bending: (model: Tan))", remesh);
+    assert!(text.contains("remesh"));
+    let path = write(&d, "attach.ron", &text);
+    for cmd in ["check", "run"] {
+        refused(&skinsim().arg(cmd).arg(&path).output().unwrap(), &["drivers[1].layer", "remeshed", "couplings"]);
+    }
+}
+
+#[test]
+fn command_line_values_out_of_range_exit_2() {
+    let d = scratch("args");
+    let path = write(&d, "good.ron", &good(2));
+    let out_dir = d.join("out");
+    let run = |extra: &[&str]| {
+        skinsim().args(["run", "--quiet", "--no-rerun", "--out"]).arg(&out_dir).args(extra).arg(&path).output().unwrap()
+    };
+    refused(&run(&["--frames", "0"]), &["--frames"]);
+    refused(&run(&["--threads", "100000000"]), &["--threads"]);
+    refused(&skinsim().arg("timing").output().unwrap(), &["at least one scene"]);
+    let bake = |extra: &[&str]| {
+        skinsim().arg("bake").arg(&path).args(["--out"]).arg(d.join("maps")).args(extra).output().unwrap()
+    };
+    refused(&bake(&["--frames", "1", "--layer", "nosuch"]), &["nosuch", "film"]);
+    refused(&bake(&["--frames", "1", "--blend", "5"]), &["--blend"]);
+    refused(&bake(&["--weights", "NaN"]), &["--weights"]);
+}
+
+#[test]
+fn a_rerun_into_the_same_folder_keeps_only_its_own_frames() {
+    let d = scratch("rerun");
+    let path = write(&d, "good.ron", &good(3));
+    let out_dir = d.join("out");
+    // Something of the user's in the output folder stays.
+    std::fs::create_dir_all(out_dir.join("obj/sheet/film")).unwrap();
+    write(&out_dir, "notes.txt", "mine");
+    write(&out_dir.join("obj/sheet/film"), "mine.obj", "# mine");
+    let run = |frames: &str| {
+        let out = skinsim()
+            .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--frames", frames, "--out"])
+            .arg(&out_dir)
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    run("3");
+    run("1");
+    let film: Vec<String> = files_under(&out_dir.join("obj/sheet/film"))
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(film, ["00001.obj", "mine.obj"]);
+    assert!(out_dir.join("notes.txt").exists());
+    let stats = std::fs::read_to_string(out_dir.join("stats.jsonl")).unwrap();
+    assert_eq!(stats.lines().count(), 1);
+}
+
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_says_so_keeps_its_frames_and_exits_130() {
+    let d = scratch("interrupt");
+    let path = write(&d, "long.ron", &good(5000));
+    let out_dir = d.join("out");
+    let child = skinsim()
+        .args(["run", "--quiet", "--export", "obj", "--out"])
+        .arg(&out_dir)
+        .arg(&path)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stats = out_dir.join("stats.jsonl");
+    let started = std::time::Instant::now();
+    while std::fs::read_to_string(&stats).map_or(0, |s| s.lines().count()) < 2 {
+        assert!(started.elapsed().as_secs() < 120, "no frame written");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted after frame") && err.contains(&out_dir.display().to_string()), "{err}");
+    let lines = std::fs::read_to_string(&stats).unwrap().lines().count();
+    assert!((2..5000).contains(&lines), "{lines} frames");
+    // Every frame in stats.jsonl has its OBJ, and the recording was closed.
+    assert_eq!(files_under(&out_dir.join("obj/sheet/film")).len(), lines);
+    assert!(std::fs::metadata(out_dir.join("recording.rrd")).unwrap().len() > 0);
+}
+
+/// Geometry `run` used to panic on: `check` now validates the final geometry (after the offset
+/// and the perturbation) and every range, and names the field.
+#[test]
+fn check_refuses_the_geometry_run_would_fail_on() {
+    let d = scratch("geometry");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let cases = [
+        ("examples/volume_slab.ron", "depth: 1.2", "depth: 1e-300", "mesh: tet 0 is degenerate"),
+        ("examples/volume_slab.ron", "depth: 1.2", "depth: 1e300", "outside +-1000 m"),
+        ("examples/volume_slab.ron", "size: (10.0, 4.0)", "size: (1e300, 4.0)", "outside +-1000 m"),
+        ("multi_patch.ron", "offset: (0.0, 10.0, 0.0)", "offset: (0.0, 1e300, 0.0)", "patches[1]"),
+        ("strip_wrinkles.ron", "amplitude: 0.001", "amplitude: 1e300", "perturbation applied"),
+        ("strip_wrinkles.ron", "amplitude: 0.001,", "amplitude: 0.001, cell: Some(1e-300),", "perturbation.cell"),
+        ("kck18/elbow_bending_quick.ron", "angle: 150.0", "angle: 1e308", "pose.angle"),
+    ];
+    for (i, (scene, from, to, words)) in cases.into_iter().enumerate() {
+        let text = std::fs::read_to_string(scenes.join(scene)).unwrap();
+        assert!(text.contains(from), "{scene}: {from}");
+        let path = write(&d, &format!("case{i}.ron"), &text.replacen(from, to, 1));
+        refused(&skinsim().arg("check").arg(&path).output().unwrap(), &[&format!("case{i}.ron"), words]);
+        let mut run = skinsim();
+        run.args(["run", "--quiet", "--no-rerun", "--frames", "1", "--out"]).arg(d.join("out")).arg(&path);
+        refused(&run.output().unwrap(), &[words]);
+    }
+}
+
+/// Resources bounded at `check`: generated meshes, precomputed poses; and a projection ring
+/// count far past the body costs no more than one that covers it.
+#[test]
+fn sizes_past_memory_are_refused_and_ring_counts_past_the_mesh_are_harmless() {
+    let d = scratch("resources");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let read = |s: &str| std::fs::read_to_string(scenes.join(s)).unwrap();
+    let grid = good(2).replace("cells: (16, 4))),", "cells: (1000000, 1000000))),");
+    let path = write(&d, "grid.ron", &grid);
+    refused(&skinsim().arg("check").arg(&path).output().unwrap(), &["layers[0]", "cells", "vertices"]);
+    let poses = read("kck18/elbow_bending_quick.ron").replacen("frames: 12,", "frames: 1000000000,", 1);
+    let path = write(&d, "poses.ron", &poses);
+    refused(&skinsim().arg("check").arg(&path).output().unwrap(), &["drivers[0]", "precomputed poses", "GB"]);
+    let rings = read("kck18/crease_quick.ron").replacen("method: Walk", "method: ProjectRing(4000000000)", 1);
+    let path = write(&d, "rings.ron", &rings);
+    let mut run = skinsim();
+    run.args(["run", "--quiet", "--no-rerun", "--frames", "1", "--out"]).arg(d.join("out")).arg(&path);
+    let out = run.output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    // A directory where a mesh file belongs.
+    let text = good(2).replace(
+        "Layer(name: \"base\", kind: Kinematic, mesh: Grid(size: (8.0, 2.0), cells: (16, 4))),",
+        "Layer(name: \"base\", kind: Kinematic, mesh: Obj(path: \".\")),",
+    );
+    let path = write(&d, "dir_mesh.ron", &text);
+    refused(&skinsim().arg("check").arg(&path).output().unwrap(), &["layers[0]", "is a directory"]);
+}
