@@ -53,13 +53,30 @@ pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
     // (a byte-order mark, as some Windows editors write)
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
-    let scene: Scene = options.from_str(text).map_err(|e| SceneError {
-        file: path.to_path_buf(),
-        position: Some((e.span.start.line, e.span.start.col)),
-        field: None,
-        message: e.code.to_string(),
+    let scene: Scene = options.from_str(text).map_err(|e| {
+        let (line, col) = (e.span.start.line, e.span.start.col);
+        let message = match syntax_hint(text, line, col) {
+            Some(hint) => format!("{}: {hint}", e.code),
+            None => e.code.to_string(),
+        };
+        SceneError { file: path.to_path_buf(), position: Some((line, col)), field: None, message }
     })?;
     Builder { file: path.to_path_buf(), dir: path.parent().map(Path::to_path_buf).unwrap_or_default() }.build(scene)
+}
+
+/// What a bare RON syntax error most likely means, from the text around its 1-based position:
+/// a decimal point in a whole number (`frames: 30.0`), or a string left open earlier.
+fn syntax_hint(text: &str, line: usize, col: usize) -> Option<String> {
+    let offset = text.lines().take(line.saturating_sub(1)).map(|l| l.len() + 1).sum::<usize>() + col.saturating_sub(1);
+    let (before, after) = text.split_at_checked(offset)?;
+    if after.starts_with('.') && before.ends_with(|c: char| c.is_ascii_digit()) {
+        return Some("this field takes a whole number (no decimal point)".into());
+    }
+    // A string that ends just before the error and spans lines was probably never closed.
+    let body = before.strip_suffix('"')?;
+    let open = body.rfind('"')?;
+    let opened = 1 + before[..open].matches('\n').count();
+    (opened < line).then(|| format!("the string opened at line {opened} runs to here: is its closing quote missing?"))
 }
 
 /// The longest name of a scene, patch or layer.

@@ -243,8 +243,8 @@ fn run(args: RunArgs) -> ExitCode {
         eprintln!("error: cannot create the output folder {}: {e}", out.display());
         return ExitCode::from(2);
     }
-    if let Err(e) = skinsim_systems::log::clear_obj_frames(&out) {
-        eprintln!("error: cannot clear the earlier OBJ frames in {}: {e}", out.display());
+    if let Err(e) = clear_earlier_outputs(&args, &scene, &out) {
+        eprintln!("error: cannot clear an earlier run's outputs in {}: {e}", out.display());
         return ExitCode::from(2);
     }
     // Ctrl-C (or SIGTERM) ends the run after the frame being computed, with every output
@@ -345,6 +345,22 @@ fn run(args: RunArgs) -> ExitCode {
     status
 }
 
+/// What an earlier run into `out` left that this one would not overwrite: its OBJ frames, and
+/// its stats.jsonl and recording.rrd when this run writes none there. Nothing else is touched.
+fn clear_earlier_outputs(args: &RunArgs, scene: &BuiltScene, out: &Path) -> std::io::Result<()> {
+    skinsim_systems::log::clear_obj_frames(out)?;
+    let records_here = !args.no_rerun && !args.spawn && args.connect.is_none() && args.rrd.is_none();
+    let stale =
+        [("stats.jsonl", !scene.scene.output.stats), ("recording.rrd", !(records_here && scene.scene.output.rerun))];
+    for (name, stale) in stale {
+        let path = out.join(name);
+        if stale && path.is_file() {
+            std::fs::remove_file(path)?;
+        }
+    }
+    Ok(())
+}
+
 fn analyze(dir: &Path, axis: usize, periodic: bool) -> ExitCode {
     use skinsim_tools::wrinkles;
     let mut files: Vec<PathBuf> = match std::fs::read_dir(dir) {
@@ -398,6 +414,7 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<re
     let rec = if args.spawn {
         builder.spawn()
     } else if let Some(url) = &args.connect {
+        viewer_listening(url)?;
         builder.connect_grpc_opts(url.clone())
     } else {
         builder.save(args.rrd.clone().unwrap_or_else(|| out.join("recording.rrd")))
@@ -405,6 +422,20 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<re
     .map_err(|e| e.to_string())?;
     rec.set_log_time_enabled(false);
     Ok(Some(rec))
+}
+
+/// The Rerun SDK connects lazily and drops what it cannot send: check that a viewer listens at
+/// `url` (e.g. rerun+http://127.0.0.1:9876/proxy) before the run starts.
+fn viewer_listening(url: &str) -> Result<(), String> {
+    use std::net::ToSocketAddrs;
+    let authority = url.split_once("://").map_or(url, |(_, rest)| rest).split('/').next().unwrap_or("");
+    let addresses: Vec<_> = authority.to_socket_addrs().map_err(|e| format!("{url}: {e}"))?.collect();
+    let timeout = std::time::Duration::from_secs(2);
+    if addresses.iter().any(|a| std::net::TcpStream::connect_timeout(a, timeout).is_ok()) {
+        Ok(())
+    } else {
+        Err(format!("no viewer is listening at {url} (start one with `rerun`, or use --spawn)"))
+    }
 }
 
 fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {

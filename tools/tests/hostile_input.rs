@@ -187,17 +187,22 @@ fn a_rerun_into_the_same_folder_keeps_only_its_own_frames() {
     std::fs::create_dir_all(out_dir.join("obj/sheet/film")).unwrap();
     write(&out_dir, "notes.txt", "mine");
     write(&out_dir.join("obj/sheet/film"), "mine.obj", "# mine");
-    let run = |frames: &str| {
+    let run = |frames: &str, rerun: &[&str]| {
         let out = skinsim()
-            .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--frames", frames, "--out"])
+            .args(["run", "--quiet", "--export", "obj", "--frames", frames])
+            .args(rerun)
+            .arg("--out")
             .arg(&out_dir)
             .arg(&path)
             .output()
             .unwrap();
         assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     };
-    run("3");
-    run("1");
+    run("3", &[]);
+    assert!(out_dir.join("recording.rrd").exists());
+    run("1", &["--no-rerun"]);
+    // (the earlier recording is not this run's: it would show three frames beside one)
+    assert!(!out_dir.join("recording.rrd").exists());
     let film: Vec<String> = files_under(&out_dir.join("obj/sheet/film"))
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
@@ -292,4 +297,23 @@ fn sizes_past_memory_are_refused_and_ring_counts_past_the_mesh_are_harmless() {
     );
     let path = write(&d, "dir_mesh.ron", &text);
     refused(&skinsim().arg("check").arg(&path).output().unwrap(), &["layers[0]", "is a directory"]);
+}
+
+/// Messages a user can act on: RON's bare "Expected comma" explained, numbers kept short, and
+/// `--connect` to a port where no viewer listens refused before the run.
+#[test]
+fn messages_say_what_is_wrong() {
+    let d = scratch("messages");
+    let decimal = write(&d, "decimal.ron", &good(2).replace("frames: 2,", "frames: 2.0,"));
+    refused(&skinsim().arg("check").arg(&decimal).output().unwrap(), &["decimal.ron:1:", "whole number"]);
+    let open = write(&d, "open.ron", &good(2).replace("name: \"sheet\",", "name: \"sheet,"));
+    refused(&skinsim().arg("check").arg(&open).output().unwrap(), &["the string opened at line 1", "closing quote"]);
+    let huge = write(&d, "huge.ron", &good(2).replace("young: 10.0", "young: -1e300"));
+    let out = skinsim().arg("check").arg(&huge).output().unwrap();
+    refused(&out, &["material.young", "-1e300"]);
+    assert!(String::from_utf8_lossy(&out.stderr).len() < 300);
+    let path = write(&d, "good.ron", &good(2));
+    let mut run = skinsim();
+    run.args(["run", "--quiet", "--connect", "rerun+http://127.0.0.1:9/proxy", "--out"]).arg(d.join("out")).arg(&path);
+    refused(&run.output().unwrap(), &["no viewer is listening", "127.0.0.1:9"]);
 }
