@@ -132,11 +132,17 @@ pub fn offset(mesh: &SurfaceMesh, distance: f64) -> SurfaceMesh {
     SurfaceMesh { rest, uv: mesh.uv.clone(), faces: mesh.faces.clone() }
 }
 
-/// An elbow: from `centre` on, the tube axis (x) bends upwards (+z) by `angle` (radians) along
+/// An elbow: from `centre` on, the tube axis (x) bends upwards (+z; downwards for a negative
+/// angle) by `angle` (radians) along
 /// an arc of radius `bend_radius`; the part before stays, the part after turns rigidly. A bend
 /// radius below the tube radius pinches the inside of the elbow and then folds it through
 /// itself.
 pub fn elbow(p: DVec3, centre: DVec3, angle: f64, bend_radius: f64) -> DVec3 {
+    if angle < 0.0 {
+        // Bending downwards: the mirror image (in z about the centre) of bending upwards.
+        let mirror = |v: DVec3| DVec3::new(v.x, v.y, 2.0 * centre.z - v.z);
+        return mirror(elbow(mirror(p), centre, -angle, bend_radius));
+    }
     let q = p - centre;
     if angle == 0.0 {
         return p;

@@ -175,15 +175,25 @@ impl Builder {
             }
             pert.amplitude *= len;
             if let Some(cell) = &mut pert.cell {
-                *cell *= len;
                 // (material coordinates over the cell stay finite numbers for the noise field)
-                if !(*cell >= MIN_CELL && *cell <= MAX_CELL) {
-                    let message = format!("must be {MIN_CELL:e} to {MAX_CELL:e} m (got {:e} m)", *cell);
+                if !(*cell * len >= MIN_CELL && *cell * len <= MAX_CELL) {
+                    let message = format!("must be > 0, from {MIN_CELL:e} to {MAX_CELL:e} m (got {})", *cell);
                     return Err(self.err(format!("{at}.solver.perturbation.cell"), message));
                 }
+                *cell *= len;
             }
         }
         let offset = DVec3::new(p.offset.0, p.offset.1, p.offset.2) * len;
+        // (checked here, not only on the final geometry: a non-finite offset would first make a
+        // driver's selection come out empty and be blamed on it)
+        if !(0.0..=super::spawn::MAX_COORDINATE).contains(&offset.abs().max_element()) {
+            let message = format!(
+                "must be finite and within +-{} m of the origin (got {:?})",
+                super::spawn::MAX_COORDINATE,
+                p.offset
+            );
+            return Err(self.err(format!("{at}.offset"), message));
+        }
         let mut layers: Vec<BuiltLayer> = Vec::new();
         let mut index = HashMap::new();
         for (li, l) in p.layers.iter().enumerate() {

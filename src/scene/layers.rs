@@ -345,7 +345,7 @@ impl Builder {
     pub(super) fn weight_map(&self, field: &str, path: &str, mesh: &LayerMesh) -> Result<WeightMap, SceneError> {
         let full = self.dir.join(path);
         if let Some(problem) = super::meshes::not_a_file(&full) {
-            return Err(SceneError::at_field(&full, field, format!("map image {problem}")));
+            return Err(SceneError::at_field(&full, field, format!("cannot read the map image: {problem}")));
         }
         let img = image::open(&full)
             .map_err(|e| SceneError::at_field(&full, field, format!("cannot read the map image: {e}")))?

@@ -65,7 +65,7 @@ impl Builder {
     fn png_map(&self, field: &str, path: &str, lo: DVec2, hi: DVec2) -> Result<RgbMap, SceneError> {
         let full = self.dir.join(path);
         if let Some(problem) = super::meshes::not_a_file(&full) {
-            return Err(SceneError::at_field(&full, field, format!("map image {problem}")));
+            return Err(SceneError::at_field(&full, field, format!("cannot read the map image: {problem}")));
         }
         let img = image::open(&full)
             .map_err(|e| SceneError::at_field(&full, field, format!("cannot read the map image: {e}")))?;

@@ -387,7 +387,7 @@ fn final_layers(p: &BuiltPatch, fixed: &[Vec<[bool; 3]>]) -> Vec<BuiltLayer> {
 
 /// The largest coordinate of a rest position (m): beyond it differences of positions lose the
 /// digits a patch's elements need.
-const MAX_COORDINATE: f64 = 1e3;
+pub(super) const MAX_COORDINATE: f64 = 1e3;
 
 /// `check` on the geometry `spawn` builds (after the offset and the perturbation): every rest
 /// position finite and within MAX_COORDINATE, every shell face and every tet with a valid rest
