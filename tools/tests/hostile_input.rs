@@ -240,9 +240,38 @@ fn an_interrupted_run_says_so_keeps_its_frames_and_exits_130() {
     assert!(err.contains("interrupted after frame") && err.contains(&out_dir.display().to_string()), "{err}");
     let lines = std::fs::read_to_string(&stats).unwrap().lines().count();
     assert!((2..5000).contains(&lines), "{lines} frames");
-    // Every frame in stats.jsonl has its OBJ, and the recording was closed.
+    // Every frame in stats.jsonl has its OBJ and its meshes in the recording, which was closed.
     assert_eq!(files_under(&out_dir.join("obj/sheet/film")).len(), lines);
-    assert!(std::fs::metadata(out_dir.join("recording.rrd")).unwrap().len() > 0);
+    let recorded = recorded_frames(&out_dir.join("recording.rrd"));
+    assert_eq!(recorded, (1..=lines as i64).collect::<Vec<_>>());
+}
+
+/// The frames of the film's mesh in a recording, read back with Rerun's decoder.
+fn recorded_frames(path: &Path) -> Vec<i64> {
+    let index = skinsim_systems::log_read::read_recording(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    index.frames.get("/patches/sheet/film").map_or(Vec::new(), |f| f.iter().copied().collect())
+}
+
+/// A killed run (SIGKILL: no handler runs) still has in its recording every frame stats.jsonl
+/// has: the recording is flushed after every frame.
+#[cfg(unix)]
+#[test]
+fn a_killed_run_keeps_every_written_frame_in_its_recording() {
+    let d = scratch("kill");
+    let path = write(&d, "long.ron", &good(5000));
+    let out_dir = d.join("out");
+    let mut child = skinsim().args(["run", "--quiet", "--out"]).arg(&out_dir).arg(&path).spawn().unwrap();
+    let stats = out_dir.join("stats.jsonl");
+    let started = std::time::Instant::now();
+    while std::fs::read_to_string(&stats).map_or(0, |s| s.lines().count()) < 3 {
+        assert!(started.elapsed().as_secs() < 120, "no frame written");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let lines = std::fs::read_to_string(&stats).unwrap().lines().count();
+    let recorded = recorded_frames(&out_dir.join("recording.rrd"));
+    assert!(recorded.len() >= lines, "{lines} frames in stats.jsonl, recorded {recorded:?}");
 }
 
 /// Geometry `run` used to panic on: `check` now validates the final geometry (after the offset
