@@ -227,11 +227,7 @@ fn an_interrupted_run_says_so_keeps_its_frames_and_exits_130() {
         .spawn()
         .unwrap();
     let stats = out_dir.join("stats.jsonl");
-    let started = std::time::Instant::now();
-    while std::fs::read_to_string(&stats).map_or(0, |s| s.lines().count()) < 2 {
-        assert!(started.elapsed().as_secs() < 120, "no frame written");
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    }
+    wait_for_frames(&stats, 2);
     let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
     assert!(kill.success());
     let out = child.wait_with_output().unwrap();
@@ -244,6 +240,15 @@ fn an_interrupted_run_says_so_keeps_its_frames_and_exits_130() {
     assert_eq!(files_under(&out_dir.join("obj/sheet/film")).len(), lines);
     let recorded = recorded_frames(&out_dir.join("recording.rrd"));
     assert_eq!(recorded, (1..=lines as i64).collect::<Vec<_>>());
+}
+
+/// Waits (at most 2 minutes) until a running scene's stats.jsonl has `frames` lines.
+fn wait_for_frames(stats: &Path, frames: usize) {
+    let started = std::time::Instant::now();
+    while std::fs::read_to_string(stats).map_or(0, |s| s.lines().count()) < frames {
+        assert!(started.elapsed().as_secs() < 120, "fewer than {frames} frames written");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
 }
 
 /// The frames of the film's mesh in a recording, read back with Rerun's decoder.
@@ -262,11 +267,7 @@ fn a_killed_run_keeps_every_written_frame_in_its_recording() {
     let out_dir = d.join("out");
     let mut child = skinsim().args(["run", "--quiet", "--out"]).arg(&out_dir).arg(&path).spawn().unwrap();
     let stats = out_dir.join("stats.jsonl");
-    let started = std::time::Instant::now();
-    while std::fs::read_to_string(&stats).map_or(0, |s| s.lines().count()) < 3 {
-        assert!(started.elapsed().as_secs() < 120, "no frame written");
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
+    wait_for_frames(&stats, 3);
     child.kill().unwrap();
     child.wait().unwrap();
     let lines = std::fs::read_to_string(&stats).unwrap().lines().count();
