@@ -294,6 +294,11 @@ fn run(args: RunArgs) -> ExitCode {
     let mut status = ExitCode::SUCCESS;
     for _ in 0..frames {
         let frame = sim.step();
+        // The recording first, then the stats line: a killed run's stats.jsonl never names a
+        // frame its recording lacks.
+        if let Some(rec) = &rec {
+            rec.flush_blocking().ok();
+        }
         if let Some(w) = stats.as_mut() {
             let line = serde_json::to_string(&frame).expect("stats serialize");
             if let Err(e) = writeln!(w, "{line}").and_then(|_| w.flush()) {
@@ -302,10 +307,6 @@ fn run(args: RunArgs) -> ExitCode {
                 status = ExitCode::from(1);
                 break;
             }
-        }
-        // (a killed run keeps in its recording every frame stats.jsonl has)
-        if let Some(rec) = &rec {
-            rec.flush_blocking().ok();
         }
         let iters: u32 = frame.patches.iter().map(|p| p.newton_iterations).sum();
         bar.set_message(format!("{iters} Newton its, {:.0} ms/frame", frame.total_ms()));
