@@ -66,7 +66,9 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         match d {
             BuiltDriver::Compress { layers: ls, axis, keyframes, predict } => motion.motions.push(Motion {
                 layers: ls.iter().map(|&i| layers[i]).collect(),
-                kind: MotionKind::Compress { axis: *axis, predict: *predict },
+                // Implicit Euler's own predictor x_n + h v_n already carries the compression
+                // (LK14 eq. 5.2): moving x_n too would count the increment twice in x_hat.
+                kind: MotionKind::Compress { axis: *axis, predict: *predict && !p.solver.mode.is_dynamic() },
                 keyframes: Keyframes(keyframes.clone()),
             }),
             BuiltDriver::Bend { layers: ls, axis, keyframes } => motion.motions.push(Motion {

@@ -57,7 +57,8 @@ pub enum DriverSpec {
     },
     /// Uniform compression of the listed layers along an axis about the patch centre:
     /// `keyframes` are (frame, strain); strain 0.1 shortens by 10 %. Moves prescribed
-    /// coordinates; with `predict`, free vertices get the same incremental map as a guess.
+    /// coordinates; with `predict`, free vertices get the same incremental map as a guess
+    /// (quasistatic modes: implicit Euler starts from its predictor x_n + h v_n).
     Compress {
         layers: Vec<String>,
         #[serde(default)]
