@@ -61,7 +61,8 @@ pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
         };
         SceneError { file: path.to_path_buf(), position: Some((line, col)), field: None, message }
     })?;
-    Builder { file: path.to_path_buf(), dir: path.parent().map(Path::to_path_buf).unwrap_or_default() }.build(scene)
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    Builder { file: path.to_path_buf(), dir, memory: Default::default() }.build(scene)
 }
 
 /// What a bare RON syntax error most likely means, from the text around its 1-based position:
@@ -90,6 +91,8 @@ const MAX_SCENE_TIME: f64 = 1e9;
 pub(super) struct Builder {
     pub(super) file: PathBuf,
     pub(super) dir: PathBuf,
+    /// The memory the layers built so far need to run (bytes, estimated: `meshes.rs`).
+    pub(super) memory: std::cell::Cell<f64>,
 }
 
 impl Builder {

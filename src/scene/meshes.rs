@@ -55,7 +55,7 @@ impl Builder {
                 if cells.0 == 0 || cells.1 == 0 {
                     return Err(self.err(format!("{field}.cells"), "needs at least one cell in each direction"));
                 }
-                self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64 + 1, cells.1 as u64 + 1, 1])?;
+                self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64 + 1, cells.1 as u64 + 1, 1], l.kind)?;
                 LayerMesh::Surface(mesh::grid(DVec2::new(size.0, size.1) * len, *cells, *pattern, z * len))
             }
             MeshSpec::TetSlab { size, cells, depth, elements, top, grading } => {
@@ -72,7 +72,7 @@ impl Builder {
                     return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
                 }
                 let counts = [cells.0 as u64 + 1, cells.1 as u64 + 1, *elements as u64 + 1];
-                self.vertex_budget(&format!("{field}.cells"), counts)?;
+                self.vertex_budget(&format!("{field}.cells"), counts, l.kind)?;
                 let size = DVec2::new(size.0, size.1) * len;
                 positive(*grading, "grading")?;
                 let (m, _) = mesh::tet_slab(size, *cells, top * len, &[(depth * len, *elements, *grading)]);
@@ -107,7 +107,7 @@ impl Builder {
                 }
                 let (bi, base) = base_slab(layer)?;
                 let counts = [base.cells.0 as u64 + 1, base.cells.1 as u64 + 1, *elements as u64 + 1];
-                self.vertex_budget(&format!("{field}.elements"), counts)?;
+                self.vertex_budget(&format!("{field}.elements"), counts, l.kind)?;
                 let new_top = base.top - base.origin.z + depth * len;
                 positive(*grading, "grading")?;
                 let (m, _) = mesh::tet_slab(base.size, base.cells, new_top, &[(depth * len, *elements, *grading)]);
@@ -136,7 +136,7 @@ impl Builder {
                 if cells.0 < 3 || cells.1 == 0 {
                     return Err(self.err(format!("{field}.cells"), "needs at least 3 cells around and 1 along"));
                 }
-                self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64, cells.1 as u64 + 1, 1])?;
+                self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64, cells.1 as u64 + 1, 1], l.kind)?;
                 LayerMesh::Surface(mesh::bodies::tube(radius * len, length * len, cells.0, cells.1))
             }
             MeshSpec::Creature { radius, subdivisions } => {
@@ -164,6 +164,7 @@ impl Builder {
                 LayerMesh::Surface(m)
             }
         };
+        self.charge_memory(&field, l.kind, mesh.rest().len() as u64)?;
         if shared.is_empty() {
             shared = vec![None; mesh.rest().len()];
         }
@@ -195,13 +196,54 @@ impl Builder {
 /// peaks at 10.3 GB, so 10 M vertices are already far past any machine's memory.
 pub const MAX_GENERATED_VERTICES: u64 = 10_000_000;
 
+/// Peak memory of a run per vertex (bytes), measured on one frame with every patch solved at
+/// once: shells 12.4-15 KB (examples/free_sheet, 10k vertices, 127 MB; lk14/fig6_4_pinch, 12k,
+/// 182 MB); tetrahedral layers 33-34 KB (h15/patch_3d_small, 20k, 680 MB; h15/patch_3d, 314k,
+/// 10.3 GB); kinematic layers hold no Newton system. The factor's fill grows faster than the
+/// vertex count, so this is a lower bound on large meshes.
+fn bytes_per_vertex(kind: LayerKind) -> f64 {
+    match kind {
+        LayerKind::Shell => 12e3,
+        LayerKind::Volume => 32e3,
+        LayerKind::Kinematic => 1e3,
+    }
+}
+
+/// The machine's physical memory (bytes) from /proc/meminfo; None where it cannot be read.
+fn machine_memory() -> Option<f64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+/// Why a scene's meshes would not fit in `limit` bytes, with `total` bytes estimated for them.
+pub(super) fn memory_error(vertices: u64, kind: LayerKind, total: f64, limit: f64) -> Option<String> {
+    (total > limit).then(|| {
+        format!(
+            "with these {vertices} vertices (a {} layer) the scene needs about {:.1} GB to run, more than \
+             this machine's {:.1} GB of memory",
+            format!("{kind:?}").to_lowercase(),
+            total / 1e9,
+            limit / 1e9
+        )
+    })
+}
+
 impl Builder {
     /// Refuses a generated mesh of more than MAX_GENERATED_VERTICES vertices (counts per axis),
-    /// before it is generated.
-    fn vertex_budget(&self, field: &str, counts: [u64; 3]) -> Result<(), SceneError> {
+    /// or one the machine's memory cannot run beside the scene's earlier layers, before it is
+    /// generated.
+    fn vertex_budget(&self, field: &str, counts: [u64; 3], kind: LayerKind) -> Result<(), SceneError> {
         let total = counts.iter().try_fold(1u64, |a, &c| a.checked_mul(c));
         match total {
-            Some(n) if n <= MAX_GENERATED_VERTICES => Ok(()),
+            Some(n) if n <= MAX_GENERATED_VERTICES => {
+                let bytes = self.memory.get() + n as f64 * bytes_per_vertex(kind);
+                match machine_memory().and_then(|limit| memory_error(n, kind, bytes, limit)) {
+                    Some(message) => Err(self.err(field, message)),
+                    None => Ok(()),
+                }
+            }
             _ => Err(self.err(
                 field,
                 format!(
@@ -210,6 +252,17 @@ impl Builder {
                 ),
             )),
         }
+    }
+
+    /// Adds a built layer's estimated memory to the scene's (every patch runs at once) and
+    /// refuses the layer that takes the scene past the machine's memory.
+    fn charge_memory(&self, field: &str, kind: LayerKind, vertices: u64) -> Result<(), SceneError> {
+        let bytes = self.memory.get() + vertices as f64 * bytes_per_vertex(kind);
+        if let Some(message) = machine_memory().and_then(|limit| memory_error(vertices, kind, bytes, limit)) {
+            return Err(self.err(field, message));
+        }
+        self.memory.set(bytes);
+        Ok(())
     }
 }
 
@@ -221,5 +274,21 @@ pub(super) fn not_a_file(path: &std::path::Path) -> Option<String> {
         Ok(m) if m.is_dir() => Some(format!("{} is a directory", path.display())),
         Ok(m) if !m.is_file() => Some(format!("{} is not a regular file", path.display())),
         Ok(_) => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The estimate is the scene's running total: a layer that fits alone is refused when the
+    /// earlier layers already hold most of the memory.
+    #[test]
+    fn the_memory_estimate_counts_the_whole_scene() {
+        let limit = 16e9;
+        let layer = 1_000_000 * bytes_per_vertex(LayerKind::Shell) as u64;
+        assert!(memory_error(1_000_000, LayerKind::Shell, layer as f64, limit).is_none());
+        let message = memory_error(1_000_000, LayerKind::Shell, 2.0 * layer as f64, limit).unwrap();
+        assert!(message.contains("1000000 vertices (a shell layer)") && message.contains("24.0 GB"), "{message}");
     }
 }
