@@ -20,12 +20,18 @@ pub enum ObjError {
     NotFinite { line: usize, keyword: &'static str, count: usize },
     #[error("no faces")]
     NoFaces,
+    #[error("line {line}: a face needs at least 3 corners")]
+    ShortFace { line: usize },
+    #[error("line {line}: face corner `{corner}` is not a vertex index (i, i/t, i//n or i/t/n)")]
+    BadCorner { line: usize, corner: String },
+    #[error("line {line}: face corner {index} refers to no vertex (the file has {count})")]
+    NoSuchVertex { line: usize, index: i64, count: usize },
 }
 
 /// Loads a triangle surface. Positions are multiplied by `to_metres`; material coordinates come
 /// from `vt` (scaled the same way) or, without texture coordinates, from the rest xy.
 pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, ObjError> {
-    unreferenced_vertex(path)?;
+    scan(path)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
     let (models, _) = tobj::load_obj(path, &opts)?;
     let mut m = SurfaceMesh::default();
@@ -50,14 +56,17 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, ObjError> {
     Ok(m)
 }
 
-/// tobj drops vertices no face uses and reads NaN and infinity as numbers; a mesh with either
-/// (or with no face) is refused, so scan for them, with line numbers.
-fn unreferenced_vertex(path: &Path) -> Result<(), ObjError> {
+/// tobj drops vertices no face uses, reads NaN and infinity as numbers and reports malformed
+/// faces without a line; a mesh with any of these (or with no face) is refused, with the line.
+fn scan(path: &Path) -> Result<(), ObjError> {
     let text = std::fs::read_to_string(path)?;
     let mut count = 0usize;
     let mut used = Vec::new();
+    // (a face may name a vertex defined after it: indices are checked at the end)
+    let mut corners: Vec<(usize, i64)> = Vec::new();
     let mut faces = 0usize;
     for (number, line) in text.lines().enumerate() {
+        let line_no = number + 1;
         let mut it = line.split_whitespace();
         let finite = |it: std::str::SplitWhitespace, n: usize| {
             let values: Vec<Option<f64>> =
@@ -67,22 +76,32 @@ fn unreferenced_vertex(path: &Path) -> Result<(), ObjError> {
         match it.next() {
             Some("v") => {
                 if !finite(it, 3) {
-                    return Err(ObjError::NotFinite { line: number + 1, keyword: "v", count: 3 });
+                    return Err(ObjError::NotFinite { line: line_no, keyword: "v", count: 3 });
                 }
                 count += 1;
-                used.push(number + 1);
+                used.push(line_no);
             }
             Some("vt") if !finite(it.clone(), 2) => {
-                return Err(ObjError::NotFinite { line: number + 1, keyword: "vt", count: 2 });
+                return Err(ObjError::NotFinite { line: line_no, keyword: "vt", count: 2 });
             }
             Some("f") => {
                 faces += 1;
+                let mut n = 0;
                 for tok in it {
-                    let Some(Ok(i)) = tok.split('/').next().map(str::parse::<i64>) else { continue };
-                    let idx = if i < 0 { count as i64 + i } else { i - 1 };
-                    if let Some(u) = usize::try_from(idx).ok().and_then(|k| used.get_mut(k)) {
-                        *u = 0; // (used)
+                    let index = tok.split('/').next().and_then(|i| i.parse::<i64>().ok()).filter(|&i| i != 0);
+                    let well_formed = tok.split('/').count() <= 3
+                        && tok.split('/').skip(1).all(|t| t.is_empty() || t.parse::<i64>().is_ok_and(|i| i != 0));
+                    match index {
+                        Some(i) if well_formed => {
+                            // (a negative index counts back from the vertices read so far)
+                            corners.push((line_no, if i < 0 { count as i64 + i } else { i - 1 }));
+                        }
+                        _ => return Err(ObjError::BadCorner { line: line_no, corner: tok.to_string() }),
                     }
+                    n += 1;
+                }
+                if n < 3 {
+                    return Err(ObjError::ShortFace { line: line_no });
                 }
             }
             _ => {}
@@ -90,6 +109,12 @@ fn unreferenced_vertex(path: &Path) -> Result<(), ObjError> {
     }
     if faces == 0 {
         return Err(ObjError::NoFaces);
+    }
+    for &(line, index) in &corners {
+        match usize::try_from(index).ok().and_then(|k| used.get_mut(k)) {
+            Some(u) => *u = 0, // (used)
+            None => return Err(ObjError::NoSuchVertex { line, index: index + 1, count }),
+        }
     }
     match used.iter().position(|&line| line != 0) {
         Some(vertex) => Err(ObjError::Unreferenced { vertex, line: used[vertex] }),

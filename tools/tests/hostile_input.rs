@@ -132,10 +132,22 @@ fn non_finite_obj_coordinates_are_refused_with_their_line() {
     let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt NaN 0\nvt 0 1\nf 1/1 2/2 3/3\n";
     write(&d, "nan_vt.obj", obj);
     write(&d, "inf_v.obj", &obj.replace("v 1 0 0", "v 1 inf 0"));
-    write(&d, "empty.obj", "# nothing\n");
-    for (file, words) in
-        [("nan_vt.obj", vec!["nan_vt.obj", "line 5", "vt"]), ("inf_v.obj", vec!["inf_v.obj", "line 2"])]
-    {
+    let empty = d.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    write(&empty, "empty.obj", "# nothing\n");
+    // Malformed faces, which tobj reports without a line.
+    let obj = obj.replace("vt NaN 0", "vt 1 0");
+    write(&d, "short.obj", &obj.replace("f 1/1 2/2 3/3", "f 1/1 2/2"));
+    write(&d, "corner.obj", &obj.replace("f 1/1 2/2 3/3", "f 1/1 2/x 3/3"));
+    write(&d, "range.obj", &obj.replace("f 1/1 2/2 3/3", "f 1/1 2/2 3/3\nf 1 2 9"));
+    let cases = [
+        ("nan_vt.obj", vec!["nan_vt.obj", "line 5", "vt"]),
+        ("inf_v.obj", vec!["inf_v.obj", "line 2"]),
+        ("short.obj", vec!["short.obj", "line 7", "at least 3 corners"]),
+        ("corner.obj", vec!["corner.obj", "line 7", "`2/x`"]),
+        ("range.obj", vec!["range.obj", "line 8", "corner 9 refers to no vertex (the file has 3)"]),
+    ];
+    for (file, words) in cases {
         let text = good(2).replace(
             "Layer(name: \"base\", kind: Kinematic, mesh: Grid(size: (8.0, 2.0), cells: (16, 4))),",
             &format!("Layer(name: \"base\", kind: Kinematic, mesh: Obj(path: \"{file}\")),"),
@@ -144,7 +156,7 @@ fn non_finite_obj_coordinates_are_refused_with_their_line() {
         refused(&skinsim().arg("check").arg(&path).output().unwrap(), &words);
     }
     // `analyze` on a folder whose frame has no face.
-    refused(&skinsim().arg("analyze").arg(&d).output().unwrap(), &["no faces"]);
+    refused(&skinsim().arg("analyze").arg(&empty).output().unwrap(), &["no faces"]);
 }
 
 #[test]
