@@ -371,3 +371,19 @@ fn messages_say_what_is_wrong() {
     run.args(["run", "--quiet", "--connect", "rerun+http://127.0.0.1:9/proxy", "--out"]).arg(d.join("out")).arg(&path);
     refused(&run.output().unwrap(), &["no viewer is listening", "127.0.0.1:9"]);
 }
+
+/// A full disk (stats.jsonl linked to /dev/full): the run stops, says which file it cannot
+/// write and why (the OS error), and exits 1.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_disk_is_named_with_the_file_and_the_os_error() {
+    let d = scratch("full");
+    let path = write(&d, "good.ron", &good(3));
+    let out_dir = d.join("out");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    std::os::unix::fs::symlink("/dev/full", out_dir.join("stats.jsonl")).unwrap();
+    let out = skinsim().args(["run", "--quiet", "--no-rerun", "--out"]).arg(&out_dir).arg(&path).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("cannot write") && err.contains("stats.jsonl") && err.contains("No space left"), "{err}");
+}
