@@ -10,6 +10,10 @@ pub struct RecordingIndex {
     pub frames: BTreeMap<String, BTreeSet<i64>>,
     /// Every `sim_time` logged (ns).
     pub sim_time: BTreeSet<i64>,
+    /// The ids of the recordings in the file (their store infos; blueprints left out).
+    pub recording_ids: BTreeSet<String>,
+    /// Every text property: "entity:field" (under `/__properties`) -> its value.
+    pub properties: BTreeMap<String, String>,
 }
 
 pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error::Error>> {
@@ -17,9 +21,26 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
     let decoder = rerun::external::re_log_encoding::DecoderApp::decode_eager(file)?;
     let mut index = RecordingIndex::default();
     for msg in decoder {
-        if let rerun::log::LogMsg::ArrowMsg(_, arrow) = msg? {
+        let msg = msg?;
+        if let rerun::log::LogMsg::SetStoreInfo(info) = &msg {
+            let id = &info.info.store_id;
+            if id.kind() == rerun::StoreKind::Recording {
+                index.recording_ids.insert(id.recording_id().to_string());
+            }
+        }
+        if let rerun::log::LogMsg::ArrowMsg(_, arrow) = msg {
             let chunk = rerun::log::Chunk::from_arrow_msg(&arrow)?;
-            let entry = index.frames.entry(chunk.entity_path().to_string()).or_default();
+            let entity = chunk.entity_path().to_string();
+            if entity.starts_with("/__properties") {
+                for (field, column) in chunk.components().0.iter() {
+                    let values = column.list_array.values();
+                    let text = values.as_any().downcast_ref::<rerun::external::arrow::array::StringArray>();
+                    for v in text.into_iter().flat_map(|t| t.iter().flatten()) {
+                        index.properties.insert(format!("{entity}:{field}"), v.to_string());
+                    }
+                }
+            }
+            let entry = index.frames.entry(entity).or_default();
             if let Some(col) = chunk.timelines().get(&"frame".into()) {
                 entry.extend(col.times_raw().iter().copied());
             }

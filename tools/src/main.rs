@@ -148,6 +148,10 @@ struct RunArgs {
     /// No Rerun output at all.
     #[arg(long)]
     no_rerun: bool,
+    /// The Rerun recording id (default: a fresh one per run, so runs never merge in a viewer;
+    /// give one to log several runs into one recording, or for a known id).
+    #[arg(long, conflicts_with = "no_rerun", value_parser = recording_id)]
+    recording_id: Option<String>,
     /// Extra exports.
     #[arg(long, value_enum)]
     export: Vec<Export>,
@@ -411,7 +415,11 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<re
     if args.no_rerun || (!scene.scene.output.rerun && args.rrd.is_none() && !args.spawn && args.connect.is_none()) {
         return Ok(None);
     }
-    let builder = rerun::RecordingStreamBuilder::new("skinsim").recording_id(format!("skinsim-{}", scene.scene.name));
+    let mut builder = rerun::RecordingStreamBuilder::new("skinsim").recording_name(scene.scene.name.clone());
+    if let Some(id) = &args.recording_id {
+        // (an explicit id would otherwise drop the recording's name and start time)
+        builder = builder.recording_id(id.clone()).send_properties(true);
+    }
     let rec = if args.spawn {
         builder.spawn()
     } else if let Some(url) = &args.connect {
@@ -422,7 +430,33 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<re
     }
     .map_err(|e| e.to_string())?;
     rec.set_log_time_enabled(false);
+    // Shown in the viewer's recording properties beside the name and start time.
+    let text = |v: String| [rerun::components::Text(v.into())];
+    let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
+    let about = rerun::AnyValues::default()
+        .with_component::<rerun::components::Text>("scene", text(scene.scene.name.clone()))
+        .with_component::<rerun::components::Text>("scene_file", text(args.scene.display().to_string()))
+        .with_component::<rerun::components::Text>("scene_sha256", text(scene_hash(&args.scene)))
+        .with_component::<rerun::components::Text>("skinsim_version", text(env!("CARGO_PKG_VERSION").to_string()))
+        .with_component::<rerun::components::Text>("threads", text(threads.to_string()));
+    rec.send_property("skinsim", &about).map_err(|e| e.to_string())?;
     Ok(Some(rec))
+}
+
+/// The SHA-256 of a scene file's bytes, in hex (which scene text a recording came from).
+fn scene_hash(path: &Path) -> String {
+    use sha2::Digest;
+    let bytes = std::fs::read(path).unwrap_or_default();
+    sha2::Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// A recording id: 1-128 printable characters, no spaces.
+fn recording_id(s: &str) -> Result<String, String> {
+    if !s.is_empty() && s.len() <= 128 && s.chars().all(|c| c.is_ascii_graphic()) {
+        Ok(s.to_string())
+    } else {
+        Err("1 to 128 printable ASCII characters without spaces".into())
+    }
 }
 
 /// The Rerun SDK connects lazily and drops what it cannot send: check that a viewer listens at

@@ -135,6 +135,43 @@ fn run_writes_stats_recording_and_obj() {
     assert!(max_x > 0.007 && max_x < 0.0081, "{max_x}");
 }
 
+/// One recording per run: two runs of one scene get different recording ids (a viewer shows
+/// them side by side instead of merging them); `--recording-id` fixes it; the recording carries
+/// the scene's name, its file's SHA-256, the version and the thread count as properties.
+#[test]
+fn each_run_is_its_own_recording_with_its_properties() {
+    let d = scratch("recording_id");
+    let s = write(&d, "s.ron", &scene("10.0", 2));
+    let run = |out: &str, extra: &[&str]| {
+        let mut cmd = skinsim();
+        cmd.args(["run", "--quiet", "--threads", "1", "--out"]).arg(d.join(out)).args(extra).arg(&s);
+        let o = cmd.output().unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+        skinsim_systems::log_read::read_recording(&d.join(out).join("recording.rrd")).unwrap()
+    };
+    let (a, b) = (run("a", &[]), run("b", &[]));
+    assert_eq!((a.recording_ids.len(), b.recording_ids.len()), (1, 1), "{:?} {:?}", a.recording_ids, b.recording_ids);
+    assert_ne!(a.recording_ids, b.recording_ids);
+    let fixed = run("c", &["--recording-id", "shot-42"]);
+    assert_eq!(fixed.recording_ids.iter().collect::<Vec<_>>(), ["shot-42"]);
+    for index in [&a, &fixed] {
+        let p = &index.properties;
+        let get = |k: &str| p.get(&format!("/__properties/skinsim:{k}")).cloned().unwrap_or_else(|| panic!("{k}: {p:?}"));
+        assert_eq!(get("scene"), "cli");
+        assert_eq!(get("scene_sha256"), hex_sha256(&std::fs::read(&s).unwrap()));
+        assert_eq!(get("threads"), "1");
+        assert_eq!(get("skinsim_version"), env!("CARGO_PKG_VERSION"));
+        assert!(p.values().filter(|v| *v == "cli").count() >= 2, "the recording's name: {p:?}");
+    }
+    let bad = skinsim().args(["run", "--recording-id", "two words"]).arg(&s).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+}
+
+fn hex_sha256(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
 #[test]
 fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
     let d = scratch("fail");
