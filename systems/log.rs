@@ -86,7 +86,7 @@ pub fn log_frame(
     mut cache: Local<RenderCache>,
     patches: Query<(&Patch, &PatchLayers)>,
     layers: Query<LayerQ>,
-    faces: Query<&FaceVerts>,
+    faces: Query<(&FaceVerts, Option<&FacePrestrain>)>,
     tets: Query<&TetVerts>,
     vertices: Query<(&Position, &RestPos, &MaterialPos)>,
 ) {
@@ -149,12 +149,19 @@ fn render_mesh(
     epoch: u64,
     lf: Option<&LayerFaces>,
     lt: Option<&LayerTets>,
-    faces: &Query<&FaceVerts>,
+    faces: &Query<(&FaceVerts, Option<&FacePrestrain>)>,
     tets: &Query<&TetVerts>,
     vertices: &Query<(&Position, &RestPos, &MaterialPos)>,
 ) -> RenderMesh {
+    // A shell face's prestrain F0 (identity without): its colour is the elastic strain.
+    let mut prestrain = Vec::new();
     let tris_e: Vec<[Entity; 3]> = if let Some(lf) = lf.filter(|f| !f.entities().is_empty()) {
-        lf.entities().iter().filter_map(|f| faces.get(*f).ok().map(|fv| fv.0)).collect()
+        let mut tris = Vec::new();
+        for (fv, f0) in lf.entities().iter().filter_map(|f| faces.get(*f).ok()) {
+            tris.push(fv.0);
+            prestrain.push(f0.map(|p| p.0));
+        }
+        tris
     } else if let Some(lt) = lt {
         let tet_e: Vec<[Entity; 4]> = lt.entities().iter().filter_map(|t| tets.get(*t).ok().map(|tv| tv.0)).collect();
         let (ents, as_idx) = mesh::compact(&tet_e);
@@ -166,5 +173,10 @@ fn render_mesh(
     let mut rm = RenderMesh { epoch, vertices: vertices_e, tris, ..Default::default() };
     let rest: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.1 .0).unwrap_or_default()).collect();
     rm.rest_area = rm.tris.iter().map(|t| shading::triangle_area(&rest, t)).collect();
+    for (a, f0) in rm.rest_area.iter_mut().zip(&prestrain) {
+        if let Some(f0) = f0 {
+            *a = shading::stress_free_area(*a, *f0);
+        }
+    }
     rm
 }

@@ -4,6 +4,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
+use rerun::external::arrow::array::Array as _;
+
 #[derive(Clone, Debug, Default)]
 pub struct RecordingIndex {
     /// Entity path -> the `frame` times it was logged at (static data: none).
@@ -14,6 +16,8 @@ pub struct RecordingIndex {
     pub recording_ids: BTreeSet<String>,
     /// Every text property: "entity:field" (under `/__properties`) -> its value.
     pub properties: BTreeMap<String, String>,
+    /// Entity path -> the vertex colours (RGBA, 0xRRGGBBAA) it was last logged with.
+    pub colours: BTreeMap<String, Vec<u32>>,
 }
 
 pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error::Error>> {
@@ -37,6 +41,16 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
                     let text = values.as_any().downcast_ref::<rerun::external::arrow::array::StringArray>();
                     for v in text.into_iter().flat_map(|t| t.iter().flatten()) {
                         index.properties.insert(format!("{entity}:{field}"), v.to_string());
+                    }
+                }
+            }
+            for (field, column) in chunk.components().0.iter() {
+                let rows = &column.list_array;
+                if field.as_str().ends_with("vertex_colors") && !rows.is_empty() {
+                    let last = rows.value(rows.len() - 1);
+                    let rgba = last.as_any().downcast_ref::<rerun::external::arrow::array::UInt32Array>();
+                    if let Some(rgba) = rgba {
+                        index.colours.insert(entity.clone(), rgba.values().to_vec());
                     }
                 }
             }

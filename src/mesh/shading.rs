@@ -42,6 +42,13 @@ pub fn normals_and_strain(pos: &[DVec3], tris: &[[u32; 3]], rest_area: &[f64]) -
     (normals, strain)
 }
 
+/// The stress-free area of a rest triangle of area `rest_area` whose membrane prestrain is `f0`
+/// (H15 eq. 4.8, F = dx/dX F0): the elastic area strain is area det(F0) / rest_area - 1, so a
+/// prestretched layer at its placed shape draws stretched, and relaxed, unstrained.
+pub fn stress_free_area(rest_area: f64, f0: glam::DMat2) -> f64 {
+    rest_area / f0.determinant()
+}
+
 /// RGBA colour of an area strain: white at rest, blue for stretch, red for compression,
 /// saturated at 10 %.
 pub fn strain_colour(strain: f64) -> [u8; 4] {
@@ -63,6 +70,17 @@ mod tests {
         assert_eq!(strain_colour(0.0), [255, 255, 255, 255]);
         assert_eq!(strain_colour(0.2), [0, 0, 255, 255]);
         assert_eq!(strain_colour(-0.2), [255, 0, 0, 255]);
+    }
+
+    #[test]
+    fn a_prestretched_triangle_is_unstrained_where_it_relaxed() {
+        let rest = [DVec3::ZERO, DVec3::X * 1.1, DVec3::Y];
+        let tri = [[0, 1, 2]];
+        let f0 = glam::DMat2::from_diagonal(glam::DVec2::new(1.1, 1.0));
+        let area = [stress_free_area(triangle_area(&rest, &tri[0]), f0)];
+        let relaxed = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        assert!(normals_and_strain(&relaxed, &tri, &area).1[0].abs() < 1e-12);
+        assert!((normals_and_strain(&rest, &tri, &area).1[0] - 0.1).abs() < 1e-12);
     }
 
     #[test]

@@ -172,6 +172,48 @@ fn hex_sha256(bytes: &[u8]) -> String {
     sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// Strain colours are elastic strains (H15 eq. 4.8, F = dx/dX F0): held at its placed shape, a
+/// layer prestretched 10 % draws blue, one precompressed 10 % red, one without prestrain white;
+/// and the KCK18 crease's prestretched skin, once it has relaxed against its anchors, is near
+/// white (it drew saturated red, the strain measured from the stretched placement).
+#[test]
+fn strain_colours_measure_from_the_prestrained_rest_shape() {
+    let d = scratch("colours");
+    let patch = |name: &str, y: f64, prestrain: &str| {
+        format!(
+            r#"Patch(name: "{name}", offset: (0.0, {y}, 0.0), layers: [
+                Layer(name: "skin", kind: Shell, mesh: Grid(size: (4.0, 4.0), cells: (4, 4)),
+                      material: (young: 1.0, poisson: 0.3, thickness: 0.1), prestrain: {prestrain}),
+            ], drivers: [Pin(layer: "skin", select: All)])"#
+        )
+    };
+    let text = format!(
+        "Scene(name: \"colours\", frames: 1, patches: [{}, {}, {}])",
+        patch("stretched", 0.0, "Some((stretch: (1.1, 1.0, 1.0)))"),
+        patch("compressed", 10.0, "Some((stretch: (0.9, 1.0, 1.0)))"),
+        patch("plain", 20.0, "None")
+    );
+    let s = write(&d, "colours.ron", &text);
+    let out = skinsim().args(["run", "--quiet", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let colours = skinsim_systems::log_read::read_recording(&d.join("out/recording.rrd")).unwrap().colours;
+    let of = |p: &str| colours.get(&format!("/patches/{p}/skin")).cloned().unwrap_or_else(|| panic!("{p}: {colours:?}"));
+    assert!(of("stretched").iter().all(|&c| c == 0x0000FFFF), "{:08x?}", of("stretched"));
+    assert!(of("compressed").iter().all(|&c| c == 0xFF0000FF), "{:08x?}", of("compressed"));
+    assert!(of("plain").iter().all(|&c| c == 0xFFFFFFFF), "{:08x?}", of("plain"));
+    let crease = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/kck18/crease_quick.ron");
+    let mut run = skinsim();
+    run.args(["run", "--quiet", "--frames", "1", "--out"]).arg(d.join("crease")).arg(&crease);
+    let out = run.output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let colours = skinsim_systems::log_read::read_recording(&d.join("crease/recording.rrd")).unwrap().colours;
+    let skin = colours.iter().find(|(k, _)| k.ends_with("/skin")).map(|(_, v)| v.clone()).unwrap();
+    // The green channel: 255 unstrained, 0 at a 10 % area strain either way.
+    let green = skin.iter().map(|c| ((c >> 16) & 0xff) as f64).sum::<f64>() / skin.len() as f64;
+    println!("crease skin, frame 1: mean green {green:.0} of 255");
+    assert!(green > 200.0, "mean green {green}");
+}
+
 #[test]
 fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
     let d = scratch("fail");
