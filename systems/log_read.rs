@@ -18,6 +18,8 @@ pub struct RecordingIndex {
     pub properties: BTreeMap<String, String>,
     /// Entity path -> the vertex colours (RGBA, 0xRRGGBBAA) it was last logged with.
     pub colours: BTreeMap<String, Vec<u32>>,
+    /// Every text of the blueprints sent (view names, origins, content queries).
+    pub blueprint: BTreeSet<String>,
 }
 
 pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error::Error>> {
@@ -32,8 +34,16 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
                 index.recording_ids.insert(id.recording_id().to_string());
             }
         }
-        if let rerun::log::LogMsg::ArrowMsg(_, arrow) = msg {
+        if let rerun::log::LogMsg::ArrowMsg(store, arrow) = msg {
             let chunk = rerun::log::Chunk::from_arrow_msg(&arrow)?;
+            if store.kind() == rerun::StoreKind::Blueprint {
+                for column in chunk.components().0.values() {
+                    let values = column.list_array.values();
+                    let text = values.as_any().downcast_ref::<rerun::external::arrow::array::StringArray>();
+                    index.blueprint.extend(text.into_iter().flat_map(|t| t.iter().flatten().map(str::to_string)));
+                }
+                continue;
+            }
             let entity = chunk.entity_path().to_string();
             if entity.starts_with("/__properties") {
                 for (field, column) in chunk.components().0.iter() {

@@ -2,6 +2,7 @@
 
 pub mod bake;
 pub mod film;
+pub mod layout;
 pub mod lk14_report;
 pub mod report;
 pub mod skin_section;

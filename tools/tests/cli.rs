@@ -214,6 +214,31 @@ fn strain_colours_measure_from_the_prestrained_rest_shape() {
     assert!(green > 200.0, "mean green {green}");
 }
 
+/// The layout sent with the recording, read back: per patch a 3D view and its energy, residual
+/// and Newton iteration plots; one timing plot of the stages the scene runs (the film scene
+/// runs no remesh and no anchor walk; the KCK18 crease walks its anchors).
+#[test]
+fn the_recording_carries_a_layout_of_the_stages_that_run() {
+    let d = scratch("layout");
+    let s = write(&d, "s.ron", &scene("10.0", 2));
+    let out = skinsim().args(["run", "--quiet", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let blueprint = skinsim_systems::log_read::read_recording(&d.join("out/recording.rrd")).unwrap().blueprint;
+    let views = ["sheet", "/patches/sheet", "sheet energy", "sheet residual", "sheet newton iterations"];
+    for text in views.iter().chain(&["stage timings (ms)", "+ /timings/solve", "+ /timings/assemble"]) {
+        assert!(blueprint.contains(*text), "{text} not in {blueprint:?}");
+    }
+    for absent in ["+ /timings/remesh", "+ /timings/anchor_walk", "+ /timings/constraint_adjust"] {
+        assert!(!blueprint.contains(absent), "{absent} in {blueprint:?}");
+    }
+    let crease = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/kck18/crease_quick.ron");
+    let mut run = skinsim();
+    run.args(["run", "--quiet", "--frames", "1", "--out"]).arg(d.join("crease")).arg(&crease);
+    assert_eq!(run.output().unwrap().status.code(), Some(0));
+    let blueprint = skinsim_systems::log_read::read_recording(&d.join("crease/recording.rrd")).unwrap().blueprint;
+    assert!(blueprint.contains("+ /timings/anchor_walk"), "{blueprint:?}");
+}
+
 #[test]
 fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
     let d = scratch("fail");

@@ -1,0 +1,37 @@
+//! The viewer layout sent with every recording and live stream (Rerun's blueprint API): per
+//! patch a 3D view of its layers (with the body and anchors where it has them) over its energy,
+//! residual and Newton iterations; beside them one plot of the stage timings the scene runs, and
+//! for remeshed layers their material-space view.
+
+use rerun::blueprint::{Blueprint, ContainerLike, Horizontal, Spatial3DView, Tabs, TimeSeriesView, Vertical};
+use skinsim::scene::BuiltScene;
+
+/// The layout for `scene`; `stages`: the keys of the stages that ran (a stage that never runs
+/// gets no plot).
+pub fn layout(scene: &BuiltScene, stages: &[String]) -> Blueprint {
+    let patches: Vec<ContainerLike> = scene
+        .patches
+        .iter()
+        .map(|p| {
+            let view = Spatial3DView::new(p.name.clone()).with_origin(format!("/patches/{}", p.name));
+            let series = ["energy", "residual", "newton_iterations"].map(|s| {
+                TimeSeriesView::new(format!("{} {}", p.name, s.replace('_', " ")))
+                    .with_origin(format!("/stats/{}/{s}", p.name))
+                    .into()
+            });
+            Vertical::new([view.into(), Horizontal::new(series).into()]).with_row_shares([3.0, 1.0]).into()
+        })
+        .collect();
+    let timings = TimeSeriesView::new("stage timings (ms)")
+        .with_origin("/timings")
+        .with_contents(stages.iter().map(|s| format!("+ /timings/{s}")));
+    let mut side: Vec<ContainerLike> = vec![timings.into()];
+    for p in &scene.patches {
+        for l in p.layers.iter().filter(|l| l.remesh.is_some()) {
+            let origin = format!("/material/{}/{}", p.name, l.name);
+            side.push(Spatial3DView::new(format!("{} {} material space", p.name, l.name)).with_origin(origin).into());
+        }
+    }
+    let root = Horizontal::new([Tabs::new(patches).into(), Vertical::new(side).into()]).with_column_shares([2.0, 1.0]);
+    Blueprint::new(root).with_auto_views(false)
+}
