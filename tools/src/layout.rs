@@ -19,7 +19,8 @@ pub fn layout(scene: &BuiltScene, stages: &[String]) -> Blueprint {
                     .with_origin(format!("/stats/{}/{s}", p.name))
                     .into()
             });
-            Vertical::new([view.into(), Horizontal::new(series).into()]).with_row_shares([3.0, 1.0]).into()
+            let column = Vertical::new([view.into(), Horizontal::new(series).into()]).with_row_shares([3.0, 1.0]);
+            column.with_name(p.name.clone()).into()
         })
         .collect();
     let timings = TimeSeriesView::new("stage timings (ms)")
