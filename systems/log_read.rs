@@ -38,19 +38,15 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
             let chunk = rerun::log::Chunk::from_arrow_msg(&arrow)?;
             if store.kind() == rerun::StoreKind::Blueprint {
                 for column in chunk.components().0.values() {
-                    let values = column.list_array.values();
-                    let text = values.as_any().downcast_ref::<rerun::external::arrow::array::StringArray>();
-                    index.blueprint.extend(text.into_iter().flat_map(|t| t.iter().flatten().map(str::to_string)));
+                    index.blueprint.extend(texts(&column.list_array));
                 }
                 continue;
             }
             let entity = chunk.entity_path().to_string();
             if entity.starts_with("/__properties") {
                 for (field, column) in chunk.components().0.iter() {
-                    let values = column.list_array.values();
-                    let text = values.as_any().downcast_ref::<rerun::external::arrow::array::StringArray>();
-                    for v in text.into_iter().flat_map(|t| t.iter().flatten()) {
-                        index.properties.insert(format!("{entity}:{field}"), v.to_string());
+                    for v in texts(&column.list_array) {
+                        index.properties.insert(format!("{entity}:{field}"), v);
                     }
                 }
             }
@@ -74,4 +70,11 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
         }
     }
     Ok(index)
+}
+
+/// The strings of a text component's column (none for other types).
+fn texts(rows: &rerun::external::arrow::array::ListArray) -> Vec<String> {
+    let values = rows.values();
+    let text = values.as_any().downcast_ref::<rerun::external::arrow::array::StringArray>();
+    text.into_iter().flat_map(|t| t.iter().flatten().map(str::to_string)).collect()
 }

@@ -300,7 +300,10 @@ fn run(args: RunArgs) -> ExitCode {
         let frame = sim.step();
         if let (Some(rec), 1) = (&rec, frame.frame) {
             // The layout, once the first frame says which stages run.
-            let ran = frame.timings_ms.iter().filter(|(k, v)| !["total", "log"].contains(&k.as_str()) && v.as_f64() > Some(0.0));
+            let ran = frame
+                .timings_ms
+                .iter()
+                .filter(|(k, v)| !["total", "log"].contains(&k.as_str()) && v.as_f64() > Some(0.0));
             let stages: Vec<String> = ran.map(|(k, _)| k.clone()).collect();
             let _ = skinsim_tools::layout::layout(&scene, &stages).send(rec, Default::default());
         }

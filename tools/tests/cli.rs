@@ -156,7 +156,8 @@ fn each_run_is_its_own_recording_with_its_properties() {
     assert_eq!(fixed.recording_ids.iter().collect::<Vec<_>>(), ["shot-42"]);
     for index in [&a, &fixed] {
         let p = &index.properties;
-        let get = |k: &str| p.get(&format!("/__properties/skinsim:{k}")).cloned().unwrap_or_else(|| panic!("{k}: {p:?}"));
+        let get =
+            |k: &str| p.get(&format!("/__properties/skinsim:{k}")).cloned().unwrap_or_else(|| panic!("{k}: {p:?}"));
         assert_eq!(get("scene"), "cli");
         assert_eq!(get("scene_sha256"), hex_sha256(&std::fs::read(&s).unwrap()));
         assert_eq!(get("threads"), "1");
@@ -197,7 +198,8 @@ fn strain_colours_measure_from_the_prestrained_rest_shape() {
     let out = skinsim().args(["run", "--quiet", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let colours = skinsim_systems::log_read::read_recording(&d.join("out/recording.rrd")).unwrap().colours;
-    let of = |p: &str| colours.get(&format!("/patches/{p}/skin")).cloned().unwrap_or_else(|| panic!("{p}: {colours:?}"));
+    let of =
+        |p: &str| colours.get(&format!("/patches/{p}/skin")).cloned().unwrap_or_else(|| panic!("{p}: {colours:?}"));
     assert!(of("stretched").iter().all(|&c| c == 0x0000FFFF), "{:08x?}", of("stretched"));
     assert!(of("compressed").iter().all(|&c| c == 0xFF0000FF), "{:08x?}", of("compressed"));
     assert!(of("plain").iter().all(|&c| c == 0xFFFFFFFF), "{:08x?}", of("plain"));

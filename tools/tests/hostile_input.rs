@@ -334,7 +334,10 @@ fn sizes_past_memory_are_refused_and_ring_counts_past_the_mesh_are_harmless() {
     let slab = read("examples/volume_slab.ron").replacen("cells: (20, 8)", "cells: (1000, 1000)", 1);
     let slab = slab.replacen("elements: 4", "elements: 8", 1);
     let path = write(&d, "slab.ron", &slab);
-    refused(&skinsim().arg("check").arg(&path).output().unwrap(), &["layers[0]", "mesh.cells", "9018009 vertices", "GB to run", "machine's"]);
+    refused(
+        &skinsim().arg("check").arg(&path).output().unwrap(),
+        &["layers[0]", "mesh.cells", "9018009 vertices", "GB to run", "machine's"],
+    );
     let poses = read("kck18/elbow_bending_quick.ron").replacen("frames: 12,", "frames: 1000000000,", 1);
     let path = write(&d, "poses.ron", &poses);
     refused(&skinsim().arg("check").arg(&path).output().unwrap(), &["drivers[0]", "precomputed poses", "GB"]);
