@@ -237,13 +237,7 @@ impl Builder {
     fn vertex_budget(&self, field: &str, counts: [u64; 3], kind: LayerKind) -> Result<(), SceneError> {
         let total = counts.iter().try_fold(1u64, |a, &c| a.checked_mul(c));
         match total {
-            Some(n) if n <= MAX_GENERATED_VERTICES => {
-                let bytes = self.memory.get() + n as f64 * bytes_per_vertex(kind);
-                match machine_memory().and_then(|limit| memory_error(n, kind, bytes, limit)) {
-                    Some(message) => Err(self.err(field, message)),
-                    None => Ok(()),
-                }
-            }
+            Some(n) if n <= MAX_GENERATED_VERTICES => self.with_memory(field, kind, n).map(|_| ()),
             _ => Err(self.err(
                 field,
                 format!(
@@ -257,12 +251,18 @@ impl Builder {
     /// Adds a built layer's estimated memory to the scene's (every patch runs at once) and
     /// refuses the layer that takes the scene past the machine's memory.
     fn charge_memory(&self, field: &str, kind: LayerKind, vertices: u64) -> Result<(), SceneError> {
-        let bytes = self.memory.get() + vertices as f64 * bytes_per_vertex(kind);
-        if let Some(message) = machine_memory().and_then(|limit| memory_error(vertices, kind, bytes, limit)) {
-            return Err(self.err(field, message));
-        }
-        self.memory.set(bytes);
+        self.memory.set(self.with_memory(field, kind, vertices)?);
         Ok(())
+    }
+
+    /// The scene's estimated memory with `vertices` more of a `kind` layer, or the error naming
+    /// `field` when that passes the machine's memory.
+    fn with_memory(&self, field: &str, kind: LayerKind, vertices: u64) -> Result<f64, SceneError> {
+        let bytes = self.memory.get() + vertices as f64 * bytes_per_vertex(kind);
+        match machine_memory().and_then(|limit| memory_error(vertices, kind, bytes, limit)) {
+            Some(message) => Err(self.err(field, message)),
+            None => Ok(bytes),
+        }
     }
 }
 
