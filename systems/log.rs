@@ -1,12 +1,15 @@
-//! Log: sends the frame to Rerun (every layer as a Mesh3D coloured by strain, scalars for
-//! energy, Newton iterations and stage timings) and writes requested OBJ files.
+//! Log: sends the frame to Rerun (every layer as a Mesh3D coloured by strain, curvature, height
+//! or layer, scalars for energy, Newton iterations and stage timings) and writes the requested
+//! OBJ files and USD samples.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
 
 use bevy_ecs::prelude::*;
 use glam::{DVec2, DVec3};
-use skinsim::mesh::{self, shading};
+use skinsim::mesh;
+use skinsim::mesh::shading::{self, ColourBy};
+use skinsim::mesh::usd::{LayerFrame, UsdStage};
 use skinsim::model::*;
 
 use crate::log_mesh::{log_material_mesh, log_mesh};
@@ -15,9 +18,20 @@ use crate::log_mesh::{log_material_mesh, log_mesh};
 #[derive(Resource)]
 pub struct RerunSink(pub rerun::RecordingStream);
 
+/// The entity the colour legend is logged to (a text document).
+pub const LEGEND: &str = "legend";
+
+/// What the layers' colours show (strain when absent).
+#[derive(Resource, Clone, Copy, Debug, Default)]
+pub struct Colouring(pub ColourBy);
+
 /// Write obj/<patch>/<layer>/<frame>.obj under this directory.
 #[derive(Resource, Clone, Debug)]
 pub struct ObjExport(pub PathBuf);
+
+/// Write a USD cache of every layer (`skinsim::mesh::usd`); the run finishes the stage.
+#[derive(Resource)]
+pub struct UsdExport(pub UsdStage);
 
 /// Removes the OBJ frames an earlier run wrote under `dir` (obj/<patch>/<layer>/<5 digits>.obj,
 /// and the folders that leaves empty), so that a rerun's folder holds only its own frames;
@@ -56,8 +70,8 @@ pub fn clear_obj_frames(dir: &std::path::Path) -> std::io::Result<()> {
     Ok(())
 }
 
-pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>) -> bool {
-    sink.is_some() || obj.is_some()
+pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>, usd: Option<Res<UsdExport>>) -> bool {
+    sink.is_some() || obj.is_some() || usd.is_some()
 }
 
 /// Triangles of a layer as drawn: its faces, or the boundary of its tetrahedra.
@@ -68,10 +82,17 @@ pub struct RenderMesh {
     pub(crate) tris: Vec<[u32; 3]>,
     pub(crate) rest_area: Vec<f64>,
     pub(crate) logged_topology: bool,
+    /// The colour scale so far (curvature and height colours: the largest seen, so that a
+    /// colour means the same value from frame to frame).
+    pub(crate) colour_scale: f64,
 }
 
 #[derive(Default)]
-pub struct RenderCache(HashMap<Entity, RenderMesh>);
+pub struct RenderCache {
+    meshes: HashMap<Entity, RenderMesh>,
+    /// The legend last logged (logged again only when it changes).
+    legend: String,
+}
 
 type LayerQ<'a> = (&'a Layer, &'a TopologyEpoch, Option<&'a LayerFaces>, Option<&'a LayerTets>, Has<RemeshSettings>);
 
@@ -82,12 +103,14 @@ pub fn log_frame(
     report: Res<FrameReport>,
     sink: Option<Res<RerunSink>>,
     obj: Option<Res<ObjExport>>,
+    colouring: Option<Res<Colouring>>,
+    mut usd: Option<ResMut<UsdExport>>,
     mut failure: ResMut<SimFailure>,
     mut cache: Local<RenderCache>,
     patches: Query<(&Patch, &PatchLayers)>,
     layers: Query<LayerQ>,
     faces: Query<(&FaceVerts, Option<&FacePrestrain>)>,
-    tets: Query<&TetVerts>,
+    tets: Query<(&TetVerts, Option<&TetPrestrain>)>,
     vertices: Query<(&Position, &RestPos, &MaterialPos)>,
 ) {
     let rec = sink.as_ref().map(|s| &s.0);
@@ -95,13 +118,16 @@ pub fn log_frame(
         rec.set_time_sequence("frame", clock.frame as i64);
         rec.set_duration_secs("sim_time", clock.time);
     }
+    let by = colouring.map(|c| c.0).unwrap_or_default();
+    let mut legend = Vec::new();
     let mut ordered: Vec<_> = patches.iter().collect();
     ordered.sort_by_key(|(p, _)| p.index);
     for (patch, patch_layers) in ordered {
-        for &l in patch_layers.entities() {
+        for (layer_index, &l) in patch_layers.entities().iter().enumerate() {
             let Ok((layer, epoch, lf, lt, remeshed)) = layers.get(l) else { continue };
-            let rm = cache.0.entry(l).or_default();
-            if rm.vertices.is_empty() || rm.epoch != epoch.0 {
+            let rm = cache.meshes.entry(l).or_default();
+            let new_topology = rm.vertices.is_empty() || rm.epoch != epoch.0;
+            if new_topology {
                 *rm = render_mesh(epoch.0, lf, lt, &faces, &tets, &vertices);
             }
             if rm.tris.is_empty() {
@@ -109,18 +135,26 @@ pub fn log_frame(
             }
             let pos: Vec<DVec3> =
                 rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.0 .0).unwrap_or(DVec3::NAN)).collect();
+            let uv = |rm: &RenderMesh| -> Vec<DVec2> {
+                rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect()
+            };
+            if let Some(UsdExport(stage)) = usd.as_deref_mut() {
+                let (normals, uv) = (shading::vertex_normals(&pos, &rm.tris), uv(rm));
+                let f = LayerFrame { positions: &pos, normals: &normals, uv: &uv, tris: &rm.tris, new_topology };
+                if let Err(e) = stage.add(&patch.name, &layer.name, remeshed, clock.frame, &f) {
+                    failure.0.get_or_insert(format!("cannot write the USD cache: {e}"));
+                }
+            }
             if let Some(rec) = rec {
                 let path = format!("patches/{}/{}", patch.name, layer.name);
-                let strain = log_mesh(rec, &path, rm, &pos, remeshed);
+                let (colours, line) = log_mesh(rec, &path, rm, &pos, remeshed, by, layer_index);
+                legend.push(format!("- **{}/{}**: {line}", patch.name, layer.name));
                 if remeshed {
-                    let uv: Vec<DVec2> =
-                        rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
-                    log_material_mesh(rec, &format!("material/{}/{}", patch.name, layer.name), rm, &uv, &strain);
+                    log_material_mesh(rec, &format!("material/{}/{}", patch.name, layer.name), rm, &uv(rm), &colours);
                 }
             }
             if let Some(ObjExport(dir)) = obj.as_deref() {
-                let uv: Vec<DVec2> =
-                    rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
+                let uv = uv(rm);
                 let folder = dir.join("obj").join(&patch.name).join(&layer.name);
                 let file = folder.join(format!("{:05}.obj", clock.frame));
                 let res = std::fs::create_dir_all(&folder).and_then(|_| mesh::obj::write(&file, &pos, &uv, &rm.tris));
@@ -131,6 +165,11 @@ pub fn log_frame(
         }
     }
     if let Some(rec) = rec {
+        let text = format!("### Colour: {}\n{}", by.name(), legend.join("\n"));
+        if text != cache.legend {
+            let _ = rec.log(LEGEND, &rerun::TextDocument::from_markdown(text.clone()));
+            cache.legend = text;
+        }
         for p in &report.patches {
             let base = format!("stats/{}", p.name);
             let _ = rec.log(format!("{base}/energy"), &rerun::Scalars::new([p.energy]));
@@ -150,22 +189,26 @@ fn render_mesh(
     lf: Option<&LayerFaces>,
     lt: Option<&LayerTets>,
     faces: &Query<(&FaceVerts, Option<&FacePrestrain>)>,
-    tets: &Query<&TetVerts>,
+    tets: &Query<(&TetVerts, Option<&TetPrestrain>)>,
     vertices: &Query<(&Position, &RestPos, &MaterialPos)>,
 ) -> RenderMesh {
-    // A shell face's prestrain F0 (identity without): its colour is the elastic strain.
+    // Each drawn triangle's prestrain F0 (a shell face's, or the tet's a boundary face bounds):
+    // its colour is the elastic strain, measured from the stress-free shape.
     let mut prestrain = Vec::new();
     let tris_e: Vec<[Entity; 3]> = if let Some(lf) = lf.filter(|f| !f.entities().is_empty()) {
         let mut tris = Vec::new();
         for (fv, f0) in lf.entities().iter().filter_map(|f| faces.get(*f).ok()) {
             tris.push(fv.0);
-            prestrain.push(f0.map(|p| p.0));
+            prestrain.push(f0.map(|p| Prestrain::Face(p.0)));
         }
         tris
     } else if let Some(lt) = lt {
-        let tet_e: Vec<[Entity; 4]> = lt.entities().iter().filter_map(|t| tets.get(*t).ok().map(|tv| tv.0)).collect();
+        let (tet_e, tet_f0): (Vec<[Entity; 4]>, Vec<_>) =
+            lt.entities().iter().filter_map(|t| tets.get(*t).ok().map(|(tv, f0)| (tv.0, f0.map(|p| p.0)))).unzip();
         let (ents, as_idx) = mesh::compact(&tet_e);
-        mesh::surface_of_tets(&as_idx).into_iter().map(|f| f.map(|i| ents[i as usize])).collect()
+        let surface = mesh::surface_faces_of_tets(&as_idx);
+        prestrain = surface.iter().map(|(_, t)| tet_f0[*t].map(Prestrain::Tet)).collect();
+        surface.into_iter().map(|(f, _)| f.map(|i| ents[i as usize])).collect()
     } else {
         Vec::new()
     };
@@ -173,10 +216,20 @@ fn render_mesh(
     let mut rm = RenderMesh { epoch, vertices: vertices_e, tris, ..Default::default() };
     let rest: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.1 .0).unwrap_or_default()).collect();
     rm.rest_area = rm.tris.iter().map(|t| shading::triangle_area(&rest, t)).collect();
-    for (a, f0) in rm.rest_area.iter_mut().zip(&prestrain) {
-        if let Some(f0) = f0 {
-            *a = shading::stress_free_area(*a, *f0);
+    for ((a, f0), t) in rm.rest_area.iter_mut().zip(&prestrain).zip(&rm.tris) {
+        match f0 {
+            Some(Prestrain::Face(f0)) => *a = shading::stress_free_area(*a, *f0),
+            Some(Prestrain::Tet(f0)) => {
+                let [p, q, r] = t.map(|v| rest[v as usize]);
+                *a = shading::stress_free_face_area(*a, (q - p).cross(r - p).normalize_or_zero(), *f0);
+            }
+            None => {}
         }
     }
     rm
+}
+
+enum Prestrain {
+    Face(glam::DMat2),
+    Tet(glam::DMat3),
 }

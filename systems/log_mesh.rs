@@ -1,21 +1,24 @@
-//! Rerun logging of one layer's mesh (for Log): coloured by strain, and in material space for
-//! remeshed layers.
+//! Rerun logging of one layer's mesh (for Log): coloured by strain, curvature, height or layer,
+//! and in material space for remeshed layers.
 
 use glam::{DVec2, DVec3};
-use skinsim::mesh::{self, shading};
+use skinsim::mesh;
+use skinsim::mesh::shading::{self, ColourBy};
 
 use crate::log::RenderMesh;
 
-/// Logs a layer's mesh coloured by strain; returns the per-vertex strain. The triangles are
-/// static unless the layer is remeshed: then they are logged at every topology change, on the
-/// timeline (static data would shadow every earlier frame's triangles).
+/// Logs a layer's mesh coloured as `by` asks; returns its vertex colours and its legend line.
+/// The triangles are static unless the layer is remeshed: then they are logged at every
+/// topology change, on the timeline (static data would shadow every earlier frame's triangles).
 pub(crate) fn log_mesh(
     rec: &rerun::RecordingStream,
     path: &str,
     rm: &mut RenderMesh,
     pos: &[DVec3],
     remeshed: bool,
-) -> Vec<f64> {
+    by: ColourBy,
+    layer_index: usize,
+) -> (Vec<rerun::Color>, String) {
     let (normals, strain) = shading::normals_and_strain(pos, &rm.tris, &rm.rest_area);
     let f3 = |v: &DVec3| [v.x as f32, v.y as f32, v.z as f32];
     if !rm.logged_topology {
@@ -24,22 +27,52 @@ pub(crate) fn log_mesh(
         let _ = if remeshed { rec.log(path, &topology) } else { rec.log_static(path, &topology) };
         rm.logged_topology = true;
     }
+    let (colours, legend) = colours(rm, pos, &normals, &strain, by, layer_index);
     let mesh = rerun::Mesh3D::update_fields()
         .with_vertex_positions(pos.iter().map(f3))
         .with_vertex_normals(normals.iter().map(f3))
-        .with_vertex_colors(colours(&strain));
+        .with_vertex_colors(colours.clone());
     let _ = rec.log(path, &mesh);
-    strain
+    (colours, legend)
 }
 
-fn colours(strain: &[f64]) -> Vec<rerun::Color> {
-    strain
-        .iter()
-        .map(|s| {
-            let [r, g, b, a] = shading::strain_colour(*s);
-            rerun::Color::from_unmultiplied_rgba(r, g, b, a)
-        })
-        .collect()
+fn colours(
+    rm: &mut RenderMesh,
+    pos: &[DVec3],
+    normals: &[DVec3],
+    strain: &[f64],
+    by: ColourBy,
+    layer_index: usize,
+) -> (Vec<rerun::Color>, String) {
+    let rgba = |[r, g, b, a]: [u8; 4]| rerun::Color::from_unmultiplied_rgba(r, g, b, a);
+    let diverging =
+        |values: &[f64], scale: f64| values.iter().map(|v| rgba(shading::diverging_colour(*v, scale))).collect();
+    match by {
+        ColourBy::Strain => {
+            let legend = format!(
+                "white at rest, blue stretch, red compression; saturated at {} % area strain",
+                100.0 * shading::STRAIN_SATURATION
+            );
+            (diverging(strain, shading::STRAIN_SATURATION), legend)
+        }
+        ColourBy::Curvature => {
+            let h = shading::mean_curvature(pos, &rm.tris, normals);
+            rm.colour_scale = shading::running_scale(rm.colour_scale, &h);
+            let legend =
+                format!("blue crest, red trough; saturated at a mean curvature of {:.3e} 1/m", rm.colour_scale);
+            (diverging(&h, rm.colour_scale), legend)
+        }
+        ColourBy::Height => {
+            let h = shading::plane_height(pos, normals);
+            rm.colour_scale = shading::running_scale(rm.colour_scale, &h);
+            let legend = format!("blue above, red below the best-fit plane; saturated at {:.3e} m", rm.colour_scale);
+            (diverging(&h, rm.colour_scale), legend)
+        }
+        ColourBy::Layer => {
+            let c = shading::layer_colour(layer_index);
+            (vec![rgba(c); pos.len()], format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]))
+        }
+    }
 }
 
 /// A remeshed layer in material space (LK14 fig. 6-4, left and centre): the triangles flat at
@@ -49,12 +82,12 @@ pub(crate) fn log_material_mesh(
     path: &str,
     rm: &RenderMesh,
     uv: &[DVec2],
-    strain: &[f64],
+    colours: &[rerun::Color],
 ) {
     let p = |u: &DVec2| [u.x as f32, u.y as f32, 0.0];
     let mesh = rerun::Mesh3D::new(uv.iter().map(p))
         .with_triangle_indices(rm.tris.iter().map(|t| rerun::datatypes::UVec3D::from(*t)))
-        .with_vertex_colors(colours(strain));
+        .with_vertex_colors(colours.iter().copied());
     let _ = rec.log(path.to_string(), &mesh);
     let edges: Vec<[[f32; 3]; 2]> =
         mesh::edges(&rm.tris).iter().map(|e| [p(&uv[e.v[0] as usize]), p(&uv[e.v[1] as usize])]).collect();

@@ -20,6 +20,8 @@ pub struct RecordingIndex {
     pub colours: BTreeMap<String, Vec<u32>>,
     /// Every text of the blueprints sent (view names, origins, content queries).
     pub blueprint: BTreeSet<String>,
+    /// Entity path -> the last text document logged to it (the colour legend).
+    pub documents: BTreeMap<String, String>,
 }
 
 pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error::Error>> {
@@ -52,6 +54,11 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
             }
             for (field, column) in chunk.components().0.iter() {
                 let rows = &column.list_array;
+                if field.as_str() == "TextDocument:text" {
+                    if let Some(last) = texts(rows).pop() {
+                        index.documents.insert(entity.clone(), last);
+                    }
+                }
                 if field.as_str().ends_with("vertex_colors") && !rows.is_empty() {
                     let last = rows.value(rows.len() - 1);
                     let rgba = last.as_any().downcast_ref::<rerun::external::arrow::array::UInt32Array>();

@@ -9,11 +9,14 @@ pub mod remesh;
 pub mod select;
 pub mod shading;
 pub mod topology;
+pub mod usd;
 pub mod wrinkle_map;
 
 pub use bounds::bounds;
 pub use generate::{grid, tet_slab, GridPattern};
-pub use topology::{boundary_vertices, check_surface, compact, edges, surface_of_tets, EdgeInfo, MeshError};
+pub use topology::{
+    boundary_vertices, check_surface, compact, edges, surface_faces_of_tets, surface_of_tets, EdgeInfo, MeshError,
+};
 
 use glam::{DVec2, DVec3};
 

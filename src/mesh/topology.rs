@@ -140,22 +140,28 @@ pub fn compact<T: Copy + Eq + std::hash::Hash, const N: usize>(elements: &[[T; N
 }
 
 pub fn surface_of_tets(tets: &[[u32; 4]]) -> Vec<[u32; 3]> {
+    surface_faces_of_tets(tets).into_iter().map(|(f, _)| f).collect()
+}
+
+/// The boundary faces of `tets` as [`surface_of_tets`] gives them, each with the index of the
+/// tet it bounds.
+pub fn surface_faces_of_tets(tets: &[[u32; 4]]) -> Vec<([u32; 3], usize)> {
     // Faces of a positively oriented tet (a, b, c, d) with outward normals.
-    let mut count: HashMap<[u32; 3], (usize, [u32; 3])> = HashMap::with_capacity(tets.len() * 2);
+    let mut count: HashMap<[u32; 3], (usize, [u32; 3], usize)> = HashMap::with_capacity(tets.len() * 2);
     let mut order = Vec::with_capacity(tets.len() * 4);
-    for t in tets {
+    for (i, t) in tets.iter().enumerate() {
         let [a, b, c, d] = *t;
         for f in [[a, c, b], [a, b, d], [a, d, c], [b, c, d]] {
             let mut key = f;
             key.sort_unstable();
-            let e = count.entry(key).or_insert((0, f));
+            let e = count.entry(key).or_insert((0, f, i));
             if e.0 == 0 {
                 order.push(key);
             }
             e.0 += 1;
         }
     }
-    order.into_iter().filter(|k| count[k].0 == 1).map(|k| count[&k].1).collect()
+    order.into_iter().filter(|k| count[k].0 == 1).map(|k| (count[&k].1, count[&k].2)).collect()
 }
 
 #[cfg(test)]

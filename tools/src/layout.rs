@@ -1,9 +1,11 @@
 //! The viewer layout sent with every recording and live stream (Rerun's blueprint API): per
 //! patch a 3D view of its layers (with the body and anchors where it has them) over its energy,
 //! residual and Newton iterations; beside them one plot of the stage timings the scene runs, and
-//! for remeshed layers their material-space view.
+//! for remeshed layers their material-space view, and the colour legend.
 
-use rerun::blueprint::{Blueprint, ContainerLike, Horizontal, Spatial3DView, Tabs, TimeSeriesView, Vertical};
+use rerun::blueprint::{
+    Blueprint, ContainerLike, Horizontal, Spatial3DView, Tabs, TextDocumentView, TimeSeriesView, Vertical,
+};
 use skinsim::scene::BuiltScene;
 
 /// The layout for `scene`; `stages`: the keys of the stages that ran (a stage that never runs
@@ -26,7 +28,8 @@ pub fn layout(scene: &BuiltScene, stages: &[String]) -> Blueprint {
     let timings = TimeSeriesView::new("stage timings (ms)")
         .with_origin("/timings")
         .with_contents(stages.iter().map(|s| format!("+ /timings/{s}")));
-    let mut side: Vec<ContainerLike> = vec![timings.into()];
+    let legend = TextDocumentView::new("colour legend").with_origin(format!("/{}", skinsim_systems::log::LEGEND));
+    let mut side: Vec<ContainerLike> = vec![timings.into(), legend.into()];
     for p in &scene.patches {
         for l in p.layers.iter().filter(|l| l.remesh.is_some()) {
             let origin = format!("/material/{}/{}", p.name, l.name);

@@ -4,6 +4,7 @@ pub mod bake;
 pub mod film;
 pub mod layout;
 pub mod lk14_report;
+pub mod plot;
 pub mod report;
 pub mod skin_section;
 pub mod timing;

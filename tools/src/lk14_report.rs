@@ -7,7 +7,7 @@
 //! gets the same smooth imperfection (a Perlin perturbation in material space): with the
 //! default vertex-random one each mesh draws its own, and the wrinkle mode it seeds (measured
 //! on case 10: 14 or 16 waves by seed, at any resolution) would swamp the discretization
-//! error. Writes speed_error_lk14.md, .csv and .svg (time per frame against shape error).
+//! error. Writes speed_error_lk14.md, .csv, .svg and .png (time per frame against shape error).
 //!
 //! Case 10 has more than one wrinkle mode within its discretization error. With the hinge, the
 //! uniform meshes from 192 x 27 to the 384 x 54 reference share one (dominant wavelength 3.9 %
@@ -21,6 +21,7 @@ use skinsim::physics::BendingElement;
 use skinsim::scene;
 use skinsim_systems::Simulation;
 
+use crate::plot::{LogLog, Point};
 use crate::wrinkles::{resample_on_grid, row_peaks};
 
 /// One run of the sweep.
@@ -46,6 +47,8 @@ pub struct Lk14Row {
     pub time_ratio: Option<(f64, bool)>,
     /// The same at the same |energy error|.
     pub time_ratio_energy: Option<(f64, bool)>,
+    /// The series' reference run (the finest uniform one).
+    pub reference: bool,
     energy: f64,
     grid: Vec<glam::DVec3>,
 }
@@ -143,6 +146,7 @@ pub fn speed_error(
         }
         // The reference: the finest uniform run.
         let finest = take(case.uniform.len()) - 1;
+        series[finest].reference = true;
         let (reference, shape) = (series[finest].energy, series[finest].grid.clone());
         let mean = shape.iter().map(|x| x.z).sum::<f64>() / shape.len() as f64;
         let height = (shape.iter().map(|x| (x.z - mean).powi(2)).sum::<f64>() / shape.len() as f64).sqrt();
@@ -161,7 +165,7 @@ pub fn speed_error(
         rows.extend(series);
     }
     write(out, &rows, element)?;
-    plot(&out.join("speed_error_lk14.svg"), &rows)?;
+    plot(&out.join("speed_error_lk14"), &rows)?;
     Ok(rows)
 }
 
@@ -284,6 +288,7 @@ fn run(
         shape_error: 0.0,
         time_ratio: None,
         time_ratio_energy: None,
+        reference: false,
         energy,
         grid: gx,
     };
@@ -368,16 +373,26 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Resu
     std::fs::write(out.join("speed_error_lk14.csv"), csv)
 }
 
-fn plot(path: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>> {
-    // (the reference run has zero error: drawn at the floor)
-    let points: Vec<(&str, f64, f64)> =
-        rows.iter().map(|r| (r.series.as_str(), r.shape_error.max(1e-3), r.ms_per_frame)).collect();
-    let labels = (
-        "LK14: time per frame against shape error (log-log)",
-        "shape error against the finest uniform run (RMS distance / RMS height)",
-        "ms per frame",
-    );
-    crate::report::log_log_plot(path, labels, &points)
+fn plot(stem: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>> {
+    // The reference runs have no error: drawn left of every other point.
+    let floor = rows.iter().map(|r| r.shape_error).filter(|e| *e > 0.0).fold(1.0f64, f64::min) / 2.0;
+    let points = rows
+        .iter()
+        .map(|r| Point {
+            series: r.series.clone(),
+            x: 100.0 * if r.reference { floor } else { r.shape_error.max(floor) },
+            y: r.ms_per_frame,
+            reference: r.reference,
+        })
+        .collect();
+    let plot = LogLog {
+        caption: "LK14: time per frame against shape error",
+        x_label: "shape error against the finest uniform run (RMS distance / RMS wrinkle height, %)",
+        y_label: "time per frame (ms)",
+        points,
+        reference_label: Some("reference (finest uniform run): no error, drawn at half the smallest"),
+    };
+    plot.write(stem)
 }
 
 #[cfg(test)]

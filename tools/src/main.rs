@@ -8,8 +8,10 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use skinsim::mesh::shading::ColourBy;
+use skinsim::mesh::usd::UsdStage;
 use skinsim::scene::{self, BuiltScene};
-use skinsim_systems::log::{ObjExport, RerunSink};
+use skinsim_systems::log::{Colouring, ObjExport, RerunSink, UsdExport};
 use skinsim_systems::Simulation;
 use skinsim_tools::bake::BakeRequest;
 
@@ -72,7 +74,7 @@ enum Command {
         out: PathBuf,
     },
     /// Speed against error (VALIDATION.md F): sweeps the resolution of the wrinkling cases and
-    /// writes speed_error.md, .csv and .svg (H15 cases 7 and 9: time per increment against
+    /// writes speed_error.md, .csv, .svg and .png (H15 cases 7 and 9: time per increment against
     /// error, log-log) and speed_error_lk14.* (LK14 cases 10 and 11: uniform against adaptive
     /// meshes, time per frame against energy error).
     Report {
@@ -123,9 +125,34 @@ enum AxisArg {
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum Export {
-    Obj,
+enum ColourArg {
+    Strain,
+    Curvature,
+    Height,
+    Layer,
 }
+
+impl From<ColourArg> for ColourBy {
+    fn from(c: ColourArg) -> Self {
+        match c {
+            ColourArg::Strain => ColourBy::Strain,
+            ColourArg::Curvature => ColourBy::Curvature,
+            ColourArg::Height => ColourBy::Height,
+            ColourArg::Layer => ColourBy::Layer,
+        }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Export {
+    /// obj/<patch>/<layer>/<frame>.obj
+    Obj,
+    /// skinsim.usda: one USD stage, each layer a time-sampled mesh
+    Usd,
+}
+
+/// The USD cache's file name in the output folder.
+const USD_STAGE: &str = "skinsim.usda";
 
 #[derive(clap::Args)]
 struct RunArgs {
@@ -152,6 +179,11 @@ struct RunArgs {
     /// give one to log several runs into one recording, or for a known id).
     #[arg(long, conflicts_with = "no_rerun", value_parser = recording_id)]
     recording_id: Option<String>,
+    /// What the viewer's colours show: the elastic area strain (blue stretch, red compression),
+    /// the mean curvature (blue crests, red troughs), the height over the layer's best-fit plane
+    /// (blue up, red down), or one colour per layer. The legend is logged as text.
+    #[arg(long = "color", value_enum, default_value = "strain", conflicts_with = "no_rerun")]
+    colour: ColourArg,
     /// Extra exports.
     #[arg(long, value_enum)]
     export: Vec<Export>,
@@ -275,9 +307,23 @@ fn run(args: RunArgs) -> ExitCode {
     };
     if let Some(rec) = &rec {
         sim.world.insert_resource(RerunSink(rec.clone()));
+        sim.world.insert_resource(Colouring(args.colour.into()));
     }
     if args.export.contains(&Export::Obj) || scene.scene.output.obj {
         sim.world.insert_resource(ObjExport(out.clone()));
+    }
+    if args.export.contains(&Export::Usd) || scene.scene.output.usd {
+        let doc =
+            format!("skinsim {}: scene {} ({})", env!("CARGO_PKG_VERSION"), scene.scene.name, args.scene.display());
+        match UsdStage::new(&out.join(USD_STAGE), &doc, 1.0 / scene.scene.frame_time) {
+            Ok(stage) => {
+                sim.world.insert_resource(UsdExport(stage));
+            }
+            Err(e) => {
+                eprintln!("error: cannot start the USD cache in {}: {e}", out.display());
+                return ExitCode::from(2);
+            }
+        }
     }
     let stats_path = out.join("stats.jsonl");
     let mut stats = if scene.scene.output.stats {
@@ -349,6 +395,13 @@ fn run(args: RunArgs) -> ExitCode {
     if let Some(rec) = &rec {
         let _ = rec.flush_blocking();
     }
+    // The USD stage holds every frame that completed, whatever ended the run.
+    if let Some(UsdExport(stage)) = sim.world.remove_resource::<UsdExport>() {
+        if let Err(e) = stage.finish() {
+            eprintln!("error: cannot write {}: {e}", out.join(USD_STAGE).display());
+            status = ExitCode::from(1);
+        }
+    }
     if !unconverged.is_empty() && status == ExitCode::SUCCESS {
         eprintln!("error: Newton did not converge in {} frame(s): {}", unconverged.len(), unconverged.join("; "));
         status = ExitCode::from(1);
@@ -364,8 +417,12 @@ fn run(args: RunArgs) -> ExitCode {
 fn clear_earlier_outputs(args: &RunArgs, scene: &BuiltScene, out: &Path) -> std::io::Result<()> {
     skinsim_systems::log::clear_obj_frames(out)?;
     let records_here = !args.no_rerun && !args.spawn && args.connect.is_none() && args.rrd.is_none();
-    let stale =
-        [("stats.jsonl", !scene.scene.output.stats), ("recording.rrd", !(records_here && scene.scene.output.rerun))];
+    // An earlier stage goes in any case: this run's is written when it ends.
+    let stale = [
+        ("stats.jsonl", !scene.scene.output.stats),
+        ("recording.rrd", !(records_here && scene.scene.output.rerun)),
+        (USD_STAGE, true),
+    ];
     for (name, stale) in stale {
         let path = out.join(name);
         if stale && path.is_file() {

@@ -1,12 +1,11 @@
 //! `skinsim report`: speed against error (VALIDATION.md F) for the wrinkling cases, as a
-//! markdown table, a CSV and a log-log plot (time per increment against error).
+//! markdown table, a CSV and a log-log plot as SVG and PNG (time per increment against error).
 
 use std::fmt::Write as _;
 use std::path::Path;
 
-use plotters::prelude::*;
-
 use crate::film::FilmSubstrate;
+use crate::plot::{LogLog, Point};
 use crate::skin_section::{SkinSection, PREDICTED_AMPLITUDE_UM, PREDICTED_ONSET, PREDICTED_WAVELENGTH_MM};
 
 /// One run of a sweep.
@@ -73,7 +72,7 @@ pub fn speed_error(out: &Path, quick: bool) -> Result<Vec<Row>, Box<dyn std::err
         });
     }
     write_table(out, &rows)?;
-    plot(&out.join("speed_error.svg"), &rows)?;
+    plot(&out.join("speed_error"), &rows)?;
     Ok(rows)
 }
 
@@ -121,49 +120,22 @@ fn write_table(out: &Path, rows: &[Row]) -> std::io::Result<()> {
     std::fs::write(out.join("speed_error.csv"), csv)
 }
 
-fn plot(path: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error>> {
-    let points: Vec<(&str, f64, f64)> =
-        rows.iter().map(|r| (r.series, r.error().max(1e-4), r.ms_per_increment)).collect();
-    let labels =
-        ("time per increment against error (log-log)", "worst of onset and amplitude error", "ms per increment");
-    log_log_plot(path, labels, &points)
-}
-
-/// A log-log SVG plot of (series, error, time) points, one line per series in order of first
-/// appearance; `labels` = (caption, x, y).
-pub fn log_log_plot(
-    path: &Path,
-    labels: (&str, &str, &str),
-    points: &[(&str, f64, f64)],
-) -> Result<(), Box<dyn std::error::Error>> {
-    let (emin, emax) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
-    let (tmin, tmax) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.2), b.max(p.2)));
-    let root = SVGBackend::new(path, (800, 560)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(labels.0, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d((emin / 1.5..emax * 1.5).log_scale(), (tmin / 1.5..tmax * 1.5).log_scale())?;
-    chart.configure_mesh().x_desc(labels.1).y_desc(labels.2).draw()?;
-    let mut names: Vec<&str> = points.iter().map(|p| p.0).collect();
-    names.dedup();
-    for (i, name) in names.iter().enumerate() {
-        let colour = Palette99::pick(i).to_rgba();
-        let pts: Vec<(f64, f64)> = points.iter().filter(|p| p.0 == *name).map(|p| (p.1, p.2)).collect();
-        chart
-            .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))?
-            .label(*name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
-        chart.draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))?;
-    }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
-    root.present()?;
-    Ok(())
+fn plot(stem: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error>> {
+    let points = rows
+        .iter()
+        .map(|r| Point {
+            series: r.series.to_string(),
+            x: 100.0 * r.error().max(1e-4),
+            y: r.ms_per_increment,
+            reference: false,
+        })
+        .collect();
+    let plot = LogLog {
+        caption: "H15 cases 7 and 9: time per increment against error",
+        x_label: "worst of onset and amplitude error against theory (%)",
+        y_label: "time per increment (ms)",
+        points,
+        reference_label: None,
+    };
+    plot.write(stem)
 }

@@ -216,6 +216,78 @@ fn strain_colours_measure_from_the_prestrained_rest_shape() {
     assert!(green > 200.0, "mean green {green}");
 }
 
+/// `--color`: curvature and height colour the wrinkled film both ways (crests blue, troughs
+/// red) and say their scale in the legend; `layer` gives each layer its own colour.
+#[test]
+fn colour_modes_show_the_wrinkles_and_log_their_legend() {
+    let d = scratch("colour-modes");
+    let s = write(&d, "s.ron", &scene("10.0", 4));
+    let colours_by = |mode: &str| {
+        let out = d.join(mode);
+        let run = skinsim().args(["run", "--quiet", "--color", mode, "--out"]).arg(&out).arg(&s).output().unwrap();
+        assert_eq!(run.status.code(), Some(0), "{}", String::from_utf8_lossy(&run.stderr));
+        skinsim_systems::log_read::read_recording(&out.join("recording.rrd")).unwrap()
+    };
+    // Blue-ish (blue channel above red) and red-ish vertices, and the share that is not white.
+    let kinds = |c: &[u32]| {
+        let (r, b) = (|c: u32| c >> 24, |c: u32| (c >> 8) & 0xff);
+        let blue = c.iter().filter(|&&c| b(c) > r(c) + 60).count();
+        let red = c.iter().filter(|&&c| r(c) > b(c) + 60).count();
+        (blue, red)
+    };
+    for mode in ["curvature", "height"] {
+        let rec = colours_by(mode);
+        let film = &rec.colours["/patches/sheet/film"];
+        let (blue, red) = kinds(film);
+        println!("{mode}: {blue} blue, {red} red of {} vertices", film.len());
+        assert!(blue > film.len() / 10 && red > film.len() / 10, "{mode}: {blue} blue, {red} red of {}", film.len());
+        let legend = &rec.documents["/legend"];
+        assert!(legend.contains(&format!("Colour: {mode}")) && legend.contains("sheet/film"), "{legend}");
+        assert!(legend.contains("saturated at"), "{legend}");
+    }
+    let rec = colours_by("layer");
+    let (base, film) = (&rec.colours["/patches/sheet/base"], &rec.colours["/patches/sheet/film"]);
+    assert!(base.iter().all(|c| *c == base[0]) && film.iter().all(|c| *c == film[0]), "{base:08x?} {film:08x?}");
+    assert_ne!(base[0], film[0]);
+    let strain = colours_by("strain");
+    assert!(strain.documents["/legend"].contains("Colour: strain"), "{:?}", strain.documents);
+}
+
+/// `--export usd`: Pixar's reader (usd-core, `tools/usd_check.py`) opens the stage and finds
+/// every layer's frames, equal to the OBJ export of the same run: a remeshed layer (time-varying
+/// topology), and the KCK18 skin with its kinematic body.
+#[test]
+fn the_usd_cache_opens_in_usd_and_matches_the_obj_export() {
+    let d = scratch("usd");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let checker = Path::new(env!("CARGO_MANIFEST_DIR")).join("usd_check.py");
+    for (name, scene, frames) in
+        [("remesh", "lk14/remesh_one_layer_quick.ron", "3"), ("crease", "kck18/crease_quick.ron", "2")]
+    {
+        let out = d.join(name);
+        let mut run = skinsim();
+        run.args(["run", "--quiet", "--no-rerun", "--export", "usd", "--export", "obj", "--frames", frames, "--out"]);
+        let run = run.arg(&out).arg(scenes.join(scene)).output().unwrap();
+        assert_eq!(run.status.code(), Some(0), "{}", String::from_utf8_lossy(&run.stderr));
+        let check = Command::new("python3").arg(&checker).arg(out.join("skinsim.usda")).arg(out.join("obj")).output();
+        let check = check.expect("python3 runs tools/usd_check.py");
+        let (stdout, stderr) = (String::from_utf8_lossy(&check.stdout), String::from_utf8_lossy(&check.stderr));
+        println!("{name}:\n{stdout}{stderr}");
+        assert_eq!(check.status.code(), Some(0), "{stdout}{stderr}");
+        assert!(stdout.contains(&format!("{frames} time samples")), "{stdout}");
+        let hidden: Vec<_> = std::fs::read_dir(&out)
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+            .collect();
+        assert!(hidden.is_empty(), "the spool is left: {hidden:?}");
+    }
+    let text = std::fs::read_to_string(d.join("remesh/skinsim.usda")).unwrap();
+    assert!(text.contains("int[] faceVertexIndices.timeSamples"), "a remeshed layer samples its topology");
+    let text = std::fs::read_to_string(d.join("crease/skinsim.usda")).unwrap();
+    assert!(text.contains("string name = \"body\"") && text.contains("string name = \"skin\""));
+}
+
 /// The layout sent with the recording, read back: per patch a 3D view and its energy, residual
 /// and Newton iteration plots; one timing plot of the stages the scene runs (the film scene
 /// runs no remesh and no anchor walk; the KCK18 crease walks its anchors).
@@ -226,7 +298,7 @@ fn the_recording_carries_a_layout_of_the_stages_that_run() {
     let out = skinsim().args(["run", "--quiet", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let blueprint = skinsim_systems::log_read::read_recording(&d.join("out/recording.rrd")).unwrap().blueprint;
-    let views = ["sheet", "/patches/sheet", "sheet energy", "sheet residual", "sheet newton iterations"];
+    let views = ["sheet", "/patches/sheet", "sheet energy", "sheet residual", "sheet newton iterations", "/legend"];
     for text in views.iter().chain(&["stage timings (ms)", "+ /timings/solve", "+ /timings/assemble"]) {
         assert!(blueprint.contains(*text), "{text} not in {blueprint:?}");
     }
@@ -250,10 +322,15 @@ fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
         "s.ron",
         &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"),
     );
-    let out = run_with_obj(&d, &s);
+    let mut run = skinsim();
+    run.args(["run", "--quiet", "--no-rerun", "--export", "obj", "--export", "usd", "--out"]);
+    let out = run.arg(d.join("out")).arg(&s).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("frame 3") && err.contains("\"sheet\""), "{err}");
+    // The USD stage is written with the frames before the failure.
+    let usd = std::fs::read_to_string(d.join("out/skinsim.usda")).unwrap();
+    assert!(usd.contains("        2: [(") && usd.contains("startTimeCode = 1"), "{usd}");
     assert!(!err.contains("panicked"), "{err}");
     let stats = std::fs::read_to_string(d.join("out/stats.jsonl")).unwrap();
     let lines: Vec<serde_json::Value> = stats.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
@@ -296,8 +373,19 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     let rows: Vec<&str> = lk14.lines().filter(|l| l.starts_with("| case") || l.starts_with("| fig")).collect();
     assert_eq!(rows.len(), 12, "{lk14}");
     assert_eq!(rows.iter().filter(|l| l.contains("adaptive")).count(), 6, "{lk14}");
-    assert!(std::fs::read_to_string(dir.join("speed_error_lk14.svg")).unwrap().starts_with("<svg"));
+    let svg = std::fs::read_to_string(dir.join("speed_error_lk14.svg")).unwrap();
+    assert!(svg.starts_with("<svg"));
+    // Axis labels with units, the reference marked, log ticks without float noise.
+    assert!(svg.contains("time per frame (ms)") && svg.contains("reference (finest uniform run)"), "{svg}");
+    assert!(!svg.contains("0000000"), "a tick label prints float noise");
     assert_eq!(std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap().lines().count(), 13);
+    for png in ["speed_error.png", "speed_error_lk14.png"] {
+        let image = image::open(dir.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+        assert_eq!(image.width(), 1000, "{png}");
+        // Text and data are drawn: some pixels are dark.
+        let dark = image.to_luma8().pixels().filter(|p| p.0[0] < 100).count();
+        assert!(dark > 2000, "{png}: {dark} dark pixels");
+    }
 }
 
 /// The LK14 sweep with the quadratic bending element, case 10 only: the table names the element

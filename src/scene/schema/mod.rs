@@ -234,10 +234,13 @@ pub struct OutputSpec {
     /// obj/<patch>/<layer>/<frame>.obj
     #[serde(default)]
     pub obj: bool,
+    /// skinsim.usda: a USD cache of every layer
+    #[serde(default)]
+    pub usd: bool,
 }
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { stats: true, rerun: true, obj: false }
+        OutputSpec { stats: true, rerun: true, obj: false, usd: false }
     }
 }
