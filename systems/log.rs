@@ -148,7 +148,7 @@ pub fn log_frame(
             if let Some(rec) = rec {
                 let path = format!("patches/{}/{}", patch.name, layer.name);
                 let (colours, line) = log_mesh(rec, &path, rm, &pos, remeshed, by, layer_index);
-                legend.push(format!("- **{}/{}**: {line}", patch.name, layer.name));
+                legend.extend(line.map(|line| format!("- **{}/{}**: {line}", patch.name, layer.name)));
                 if remeshed {
                     log_material_mesh(rec, &format!("material/{}/{}", patch.name, layer.name), rm, &uv(rm), &colours);
                 }
@@ -165,7 +165,7 @@ pub fn log_frame(
         }
     }
     if let Some(rec) = rec {
-        let text = format!("### Colour: {}\n{}", by.name(), legend.join("\n"));
+        let text = format!("### Colour: {}\n{}\n\n{}", by.name(), by.legend(), legend.join("\n"));
         if text != cache.legend {
             let _ = rec.log(LEGEND, &rerun::TextDocument::from_markdown(text.clone()));
             cache.legend = text;

@@ -7,7 +7,8 @@ use skinsim::mesh::shading::{self, ColourBy};
 
 use crate::log::RenderMesh;
 
-/// Logs a layer's mesh coloured as `by` asks; returns its vertex colours and its legend line.
+/// Logs a layer's mesh coloured as `by` asks; returns its vertex colours and its line of the
+/// legend (its scale or colour; none for strain, whose scale is fixed).
 /// The triangles are static unless the layer is remeshed: then they are logged at every
 /// topology change, on the timeline (static data would shadow every earlier frame's triangles).
 pub(crate) fn log_mesh(
@@ -18,7 +19,7 @@ pub(crate) fn log_mesh(
     remeshed: bool,
     by: ColourBy,
     layer_index: usize,
-) -> (Vec<rerun::Color>, String) {
+) -> (Vec<rerun::Color>, Option<String>) {
     let (normals, strain) = shading::normals_and_strain(pos, &rm.tris, &rm.rest_area);
     let f3 = |v: &DVec3| [v.x as f32, v.y as f32, v.z as f32];
     if !rm.logged_topology {
@@ -43,36 +44,43 @@ fn colours(
     strain: &[f64],
     by: ColourBy,
     layer_index: usize,
-) -> (Vec<rerun::Color>, String) {
+) -> (Vec<rerun::Color>, Option<String>) {
     let rgba = |[r, g, b, a]: [u8; 4]| rerun::Color::from_unmultiplied_rgba(r, g, b, a);
     let diverging =
         |values: &[f64], scale: f64| values.iter().map(|v| rgba(shading::diverging_colour(*v, scale))).collect();
     match by {
-        ColourBy::Strain => {
-            let legend = format!(
-                "white at rest, blue stretch, red compression; saturated at {} % area strain",
-                100.0 * shading::STRAIN_SATURATION
-            );
-            (diverging(strain, shading::STRAIN_SATURATION), legend)
-        }
+        ColourBy::Strain => (diverging(strain, shading::STRAIN_SATURATION), None),
         ColourBy::Curvature => {
             let h = shading::mean_curvature(pos, &rm.tris, normals);
             rm.colour_scale = shading::running_scale(rm.colour_scale, &h);
-            let legend =
-                format!("blue crest, red trough; saturated at a mean curvature of {:.3e} 1/m", rm.colour_scale);
-            (diverging(&h, rm.colour_scale), legend)
+            let line = if rm.colour_scale > 0.0 {
+                format!("{} 1/m (radius {} mm)", significant(rm.colour_scale), significant(1e3 / rm.colour_scale))
+            } else {
+                "flat".to_string()
+            };
+            (diverging(&h, rm.colour_scale), Some(line))
         }
         ColourBy::Height => {
             let h = shading::plane_height(pos, normals);
             rm.colour_scale = shading::running_scale(rm.colour_scale, &h);
-            let legend = format!("blue above, red below the best-fit plane; saturated at {:.3e} m", rm.colour_scale);
-            (diverging(&h, rm.colour_scale), legend)
+            let line = if rm.colour_scale > 0.0 {
+                format!("{} mm", significant(1e3 * rm.colour_scale))
+            } else {
+                "flat".into()
+            };
+            (diverging(&h, rm.colour_scale), Some(line))
         }
         ColourBy::Layer => {
             let c = shading::layer_colour(layer_index);
-            (vec![rgba(c); pos.len()], format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]))
+            (vec![rgba(c); pos.len()], Some(format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])))
         }
     }
+}
+
+/// Three significant digits, no exponent for the usual sizes ("411", "2.43", "0.0123").
+fn significant(x: f64) -> String {
+    let digits = (2 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    format!("{x:.digits$}")
 }
 
 /// A remeshed layer in material space (LK14 fig. 6-4, left and centre): the triangles flat at

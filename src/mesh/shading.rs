@@ -66,6 +66,25 @@ pub enum ColourBy {
 impl ColourBy {
     pub const ALL: [ColourBy; 4] = [ColourBy::Strain, ColourBy::Curvature, ColourBy::Height, ColourBy::Layer];
 
+    /// What the colours mean (the legend's heading; per-layer scales follow it).
+    pub fn legend(self) -> &'static str {
+        match self {
+            ColourBy::Strain => {
+                "Elastic area strain, from the prestrained rest shape: white at rest, blue stretch, red compression; \
+                 saturated at 10 %."
+            }
+            ColourBy::Curvature => {
+                "Mean curvature: blue crest, red trough, white flat. Each layer saturates at the largest 98th \
+                 percentile of |H| seen so far:"
+            }
+            ColourBy::Height => {
+                "Height over the layer's best-fit plane: blue above, red below. Each layer saturates at the largest \
+                 98th percentile of |height| seen so far:"
+            }
+            ColourBy::Layer => "One colour per layer:",
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             ColourBy::Strain => "strain",

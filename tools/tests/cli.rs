@@ -243,7 +243,7 @@ fn colour_modes_show_the_wrinkles_and_log_their_legend() {
         assert!(blue > film.len() / 10 && red > film.len() / 10, "{mode}: {blue} blue, {red} red of {}", film.len());
         let legend = &rec.documents["/legend"];
         assert!(legend.contains(&format!("Colour: {mode}")) && legend.contains("sheet/film"), "{legend}");
-        assert!(legend.contains("saturated at"), "{legend}");
+        assert!(legend.contains("saturates at") && legend.contains(" mm"), "{legend}");
     }
     let rec = colours_by("layer");
     let (base, film) = (&rec.colours["/patches/sheet/base"], &rec.colours["/patches/sheet/film"]);
