@@ -3,6 +3,7 @@
 
 pub mod anchors;
 pub mod assemble;
+pub mod attach;
 pub mod capture;
 pub mod inspect;
 pub mod kernels;

@@ -33,7 +33,12 @@ pub fn remesh_layers(world: &mut World) {
         let radius = kernels.iter().filter(|k| k.upper == layer || k.lower == layer).map(|k| k.shape.radius);
         let p = &mut settings.params;
         p.size_max = radius.fold(p.size_max, |m, r| m.min(KERNEL_EDGES * r)).max(p.size_min * 1.0001);
+        let epoch = |w: &World| w.get::<TopologyEpoch>(layer).map(|e| e.0);
+        let before = epoch(world);
         remesh_layer(world, layer, &settings, frame);
+        if epoch(world) != before {
+            crate::attach::reattach(world, layer);
+        }
     }
 }
 

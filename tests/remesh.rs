@@ -421,3 +421,89 @@ fn a_smooth_perturbation_is_the_same_on_every_mesh() {
     }
     assert!(new.len() > 10, "{} new vertices", new.len());
 }
+
+/// A film on a base, joined by an Attach driver, one of them remeshed (issue 22): `attached`
+/// holds the springs, `to` is the other layer.
+fn attached_scene(attached: &str, to: &str, pin: bool) -> String {
+    let remesh = "remesh: Some((size_min: 0.1, size_max: 1.0, refine_compression: 0.01))";
+    let pin = if pin { r#"Pin(layer: "film", select: Sides([XMin])),"# } else { "" };
+    format!(
+        r#"Scene(name: "attach", frames: 5, patches: [Patch(name: "sheet",
+            solver: (projection: Adaptive, perturbation: (amplitude: 0.001, seed: 1)),
+            layers: [
+                Layer(name: "base", kind: Kinematic, mesh: Grid(size: (8.0, 2.0), cells: (16, 4))),
+                Layer(name: "film", kind: Shell, mesh: Grid(size: (8.0, 2.0), cells: (16, 4)),
+                      material: (young: 10.0, poisson: 0.3, thickness: 0.1), bending: (model: Tan), {remesh}),
+            ],
+            drivers: [
+                Compress(layers: ["base", "film"], keyframes: [(2, 0.0), (5, 0.05)]),
+                Attach(layer: "{attached}", to: "{to}", stiffness: 0.0056),
+                {pin}
+            ],
+        )])"#
+    )
+}
+
+/// Attach with a remeshed layer, either way round, with and without a Pin: every frame
+/// converges; after each remesh every spring is a face spring whose point on the other layer
+/// sits at its vertex's rest (x, y), on live vertices; the remeshed film gets one spring per
+/// vertex, a kept layer keeps its springs' count and stiffness; and the film stays on the base.
+#[test]
+fn attachments_follow_a_remesh_of_either_layer() {
+    for (attached, to, pin) in [("film", "base", false), ("film", "base", true), ("base", "film", false)] {
+        let text = attached_scene(attached, to, pin);
+        let scene =
+            skinsim::scene::load_str(&text, std::path::Path::new("attach.ron")).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = Simulation::new(&scene);
+        let (a_layer, b_layer) = (layer(&mut sim, attached), layer(&mut sim, to));
+        let stiffness = |sim: &Simulation| -> f64 {
+            let springs = sim.world.get::<LayerSprings>(a_layer).unwrap().entities().to_vec();
+            springs
+                .iter()
+                .map(|&s| {
+                    let e = sim.world.entity(s);
+                    e.get::<Spring>()
+                        .map(|s| s.stiffness)
+                        .or_else(|| e.get::<FaceSpring>().map(|s| s.stiffness))
+                        .unwrap()
+                })
+                .sum()
+        };
+        let k_start = stiffness(&sim);
+        let n_start = sim.world.get::<LayerSprings>(a_layer).unwrap().entities().len();
+        let mut worst_gap = 0.0f64;
+        for frame in 1..=scene.scene.frames {
+            let s = sim.step();
+            assert!(s.patches[0].converged, "{attached} -> {to}, frame {frame}: {:?}", s.patches[0]);
+            let w = &sim.world;
+            let springs = w.get::<LayerSprings>(a_layer).unwrap().entities().to_vec();
+            let a_verts: HashSet<Entity> =
+                w.get::<LayerVertices>(a_layer).unwrap().entities().iter().copied().collect();
+            let b_verts: HashSet<Entity> =
+                w.get::<LayerVertices>(b_layer).unwrap().entities().iter().copied().collect();
+            if frame == 1 {
+                assert!(springs.iter().all(|&s| w.get::<Spring>(s).is_some()), "vertex pairs before any remesh");
+                continue;
+            }
+            for &s in &springs {
+                let sp = w.get::<FaceSpring>(s).expect("a face spring after a remesh");
+                assert!(a_verts.contains(&sp.a) && sp.b.iter().all(|b| b_verts.contains(b)), "live vertices");
+                let rest = |v: Entity| w.get::<RestPos>(v).unwrap().0;
+                let on_b: glam::DVec3 = (0..3).map(|k| sp.w[k] * rest(sp.b[k])).sum();
+                assert!(on_b.truncate().distance(rest(sp.a).truncate()) < 1e-9, "the point under the vertex");
+                let pos = |v: Entity| w.get::<Position>(v).unwrap().0;
+                let now: glam::DVec3 = (0..3).map(|k| sp.w[k] * pos(sp.b[k])).sum();
+                worst_gap = worst_gap.max(now.distance(pos(sp.a)));
+            }
+            if attached == "film" {
+                assert_eq!(springs.len(), a_verts.len(), "one spring per film vertex");
+            } else {
+                assert_eq!(springs.len(), n_start, "the kept layer's springs");
+                assert!((stiffness(&sim) / k_start - 1.0).abs() < 1e-12);
+            }
+        }
+        // (the film, 0.1 thick, wrinkles on its springs by a few hundredths)
+        println!("{attached} -> {to} (pin {pin}): largest spring length {worst_gap:.3e}");
+        assert!(worst_gap < 0.1, "{attached} -> {to}: the film left the base ({worst_gap})");
+    }
+}

@@ -4,6 +4,7 @@ pub mod bodies;
 pub mod bounds;
 pub mod generate;
 pub mod imperfection;
+pub mod locate;
 pub mod obj;
 pub mod remesh;
 pub mod select;

@@ -330,6 +330,22 @@ pub struct Spring {
     pub stiffness: f64,
 }
 
+/// A zero-length attachment spring from vertex `a` to the point sum_i w_i x(b_i) of a face of
+/// another layer: what an Attach becomes once a remesh has moved its vertices off each other's
+/// (PHYSICS.md 1.5), held by the layer of `a`.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct FaceSpring {
+    pub a: Entity,
+    pub b: [Entity; 3],
+    pub w: [f64; 3],
+    pub stiffness: f64,
+}
+
+/// On a layer attached by an Attach driver: the layer it is attached to and the stiffness per
+/// unit area, to make its springs again after a remesh of either layer.
+#[derive(Component, Clone, Debug, Default)]
+pub struct Attachments(pub Vec<(Entity, f64)>);
+
 /// Spring -> Layer.
 #[derive(Component, Clone, Copy, Debug)]
 #[relationship(relationship_target = LayerSprings)]

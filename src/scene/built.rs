@@ -126,11 +126,13 @@ pub enum BuiltDriver {
         axis: usize,
         keyframes: Vec<(u32, f64)>,
     },
-    /// Springs (vertex of `layer`, vertex of `to`, stiffness N/m).
+    /// Springs (vertex of `layer`, vertex of `to`, stiffness N/m), and their stiffness per unit
+    /// area of `layer` (N/m^3: for the springs made again after a remesh).
     Attach {
         layer: usize,
         to: usize,
         springs: Vec<(u32, u32, f64)>,
+        k_area: f64,
     },
     /// Per layer: (vertex, master vertex) pairs whose in-plane coordinates are shared.
     PlaneStrain {

@@ -182,20 +182,9 @@ impl Builder {
                 if !(*stiffness > 0.0 && stiffness.is_finite()) {
                     return Err(self.err(format!("{dat}.stiffness"), format!("must be > 0 (got {stiffness})")));
                 }
-                // The springs join vertex pairs at one rest position; a remesh replaces the
-                // vertices of its layer, so they could not follow it.
-                for (field, li) in [("layer", a), ("to", b)] {
-                    if layers[li].remesh.is_some() {
-                        let message = format!(
-                            "layer \"{}\" is remeshed, and attachment springs cannot follow a remesh: \
-                             attach layers without `remesh`, or couple them with kernels (`couplings`)",
-                            layers[li].name
-                        );
-                        return Err(self.err(format!("{dat}.{field}"), message));
-                    }
-                }
-                let springs = self.attach_springs(dat, &layers[a], &layers[b], stiffness * stress / len)?;
-                BuiltDriver::Attach { layer: a, to: b, springs }
+                let k_area = stiffness * stress / len;
+                let springs = self.attach_springs(dat, &layers[a], &layers[b], k_area)?;
+                BuiltDriver::Attach { layer: a, to: b, springs, k_area }
             }
         })
     }

@@ -89,7 +89,11 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
                 kind: MotionKind::Sequence { frames: frames.clone(), start: *start },
                 keyframes: Keyframes(Vec::new()),
             }),
-            BuiltDriver::Attach { layer, to, springs } => {
+            BuiltDriver::Attach { layer, to, springs, k_area } => {
+                let mut attached = world.entity_mut(layers[*layer]);
+                let mut list = attached.get::<Attachments>().cloned().unwrap_or_default();
+                list.0.push((layers[*to], *k_area));
+                attached.insert(list);
                 let batch: Vec<_> = springs
                     .iter()
                     .map(|&(a, b, k)| {

@@ -71,6 +71,9 @@ pub struct Elements {
     /// Anchors at skin vertices and at skin face barycentres (KCK18 section 3).
     pub vertex_anchors: Vec<AnchorElem<1>>,
     pub face_anchors: Vec<AnchorElem<3>>,
+    /// Attachment springs from a vertex to a point of a face of another layer (an Attach whose
+    /// layers are remeshed): v = [vertex, face corners], w = [1, -barycentric], target 0.
+    pub face_springs: Vec<AnchorElem<4>>,
 }
 
 impl Elements {
@@ -80,7 +83,9 @@ impl Elements {
         let m: f64 = self.membranes.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum();
         let t: f64 = self.tets.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum();
         let h: f64 = self.hinges.iter().map(|e| e.rest.weight).sum();
-        let s: f64 = self.springs.iter().map(|e| e.k * length * length).sum();
+        let s: f64 = self.springs.iter().map(|e| e.k).chain(self.face_springs.iter().map(|e| e.k)).sum::<f64>()
+            * length
+            * length;
         let a: f64 =
             self.vertex_anchors.iter().map(|e| e.k).sum::<f64>() + self.face_anchors.iter().map(|e| e.k).sum::<f64>();
         m + t + h + self.quadratic.rigidity_sum() + s + a * length * length

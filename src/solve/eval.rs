@@ -52,7 +52,8 @@ pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
         volume: sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
         springs: sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize]))
             + sum_chunks(&elements.vertex_anchors, |e| anchor_energy(e, x))
-            + sum_chunks(&elements.face_anchors, |e| anchor_energy(e, x)),
+            + sum_chunks(&elements.face_anchors, |e| anchor_energy(e, x))
+            + sum_chunks(&elements.face_springs, |e| anchor_energy(e, x)),
     }
 }
 
@@ -135,6 +136,12 @@ pub fn assemble(
     out.parts.springs += acc.class::<_, 3, 9>(
         &el.face_anchors,
         &pattern.face_anchors,
+        |e| e.v,
+        |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
+    );
+    out.parts.springs += acc.class::<_, 4, 12>(
+        &el.face_springs,
+        &pattern.face_springs,
         |e| e.v,
         |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
     );
@@ -302,6 +309,9 @@ pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
     }
     for e in &el.face_anchors {
         add(&e.v, spring::anchor_eval::<3, 9>(e.k, &e.w, &gather(x, &e.v), e.target).1.as_slice());
+    }
+    for e in &el.face_springs {
+        add(&e.v, spring::anchor_eval::<4, 12>(e.k, &e.w, &gather(x, &e.v), e.target).1.as_slice());
     }
     g
 }

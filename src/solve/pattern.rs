@@ -29,6 +29,7 @@ pub struct Pattern {
     pub springs: Vec<u32>,
     pub vertex_anchors: Vec<u32>,
     pub face_anchors: Vec<u32>,
+    pub face_springs: Vec<u32>,
     /// Elimination order of the free DOFs (nested dissection of the vertices): order[k] is
     /// the DOF eliminated k-th.
     pub order: Vec<u32>,
@@ -95,6 +96,7 @@ impl Pattern {
         elements.tets.iter().for_each(|e| link(&e.v));
         elements.springs.iter().for_each(|e| link(&e.v));
         elements.face_anchors.iter().for_each(|e| link(&e.v));
+        elements.face_springs.iter().for_each(|e| link(&e.v));
         for (v, a) in adj.iter_mut().enumerate() {
             a.push(v as u32); // every free DOF has a diagonal entry
             a.sort_unstable();
@@ -163,6 +165,7 @@ impl Pattern {
             springs: Vec::new(),
             vertex_anchors: Vec::new(),
             face_anchors: Vec::new(),
+            face_springs: Vec::new(),
             order,
         };
         p.membranes = elements.membranes.iter().flat_map(|e| p.element_map(&e.v)).collect();
@@ -174,6 +177,7 @@ impl Pattern {
         p.springs = elements.springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.vertex_anchors = elements.vertex_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.face_anchors = elements.face_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.face_springs = elements.face_springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p
     }
 

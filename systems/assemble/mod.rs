@@ -41,6 +41,7 @@ pub struct ElementItems<'w, 's> {
     pub hinges: Query<'w, 's, (&'static EdgeVerts, &'static Hinge)>,
     pub tets: Query<'w, 's, (&'static TetVerts, &'static TetRestShape, Option<&'static ModulusScale>)>,
     pub springs: Query<'w, 's, &'static Spring>,
+    pub face_springs: Query<'w, 's, &'static FaceSpring>,
     pub anchors: Query<'w, 's, (&'static Anchor, &'static AnchorState)>,
     pub kernels: Query<'w, 's, (&'static Kernel, Ref<'static, KernelWeights>)>,
     pub thickness: Query<'w, 's, (&'static Thickness, Option<&'static LayerProperties>)>,

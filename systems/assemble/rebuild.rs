@@ -5,7 +5,7 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
 use skinsim::physics::{BendingElement, QuadraticBending};
-use skinsim::solve::{Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
+use skinsim::solve::{AnchorElem, Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
 
 use super::{ElementItems, LayerItems, LayerItemsItem};
 
@@ -113,6 +113,15 @@ pub(super) fn rebuild(
             for &s in ls.entities() {
                 if let Ok(sp) = items.springs.get(s) {
                     el.springs.push(SpringElem { v: [idx(&sp.a), idx(&sp.b)], k: sp.stiffness });
+                }
+                if let Ok(sp) = items.face_springs.get(s) {
+                    let [b0, b1, b2] = sp.b.map(|b| idx(&b));
+                    el.face_springs.push(AnchorElem {
+                        v: [idx(&sp.a), b0, b1, b2],
+                        w: [1.0, -sp.w[0], -sp.w[1], -sp.w[2]],
+                        k: sp.stiffness,
+                        target: glam::DVec3::ZERO,
+                    });
                 }
             }
         }
