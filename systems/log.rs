@@ -33,43 +33,6 @@ pub struct ObjExport(pub PathBuf);
 #[derive(Resource)]
 pub struct UsdExport(pub UsdStage);
 
-/// Removes the OBJ frames an earlier run wrote under `dir` (obj/<patch>/<layer>/<5 digits>.obj,
-/// and the folders that leaves empty), so that a rerun's folder holds only its own frames;
-/// nothing else is touched.
-pub fn clear_obj_frames(dir: &std::path::Path) -> std::io::Result<()> {
-    let obj = dir.join("obj");
-    let folders = |d: &std::path::Path| -> std::io::Result<Vec<PathBuf>> {
-        let mut v = Vec::new();
-        for e in std::fs::read_dir(d)? {
-            let e = e?;
-            if e.file_type()?.is_dir() {
-                v.push(e.path());
-            }
-        }
-        Ok(v)
-    };
-    if !obj.is_dir() {
-        return Ok(());
-    }
-    for patch in folders(&obj)? {
-        for layer in folders(&patch)? {
-            for e in std::fs::read_dir(&layer)? {
-                let path = e?.path();
-                let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-                let frame =
-                    name.strip_suffix(".obj").is_some_and(|s| s.len() == 5 && s.bytes().all(|b| b.is_ascii_digit()));
-                if frame && path.is_file() {
-                    std::fs::remove_file(&path)?;
-                }
-            }
-            let _ = std::fs::remove_dir(&layer); // (only when empty)
-        }
-        let _ = std::fs::remove_dir(&patch);
-    }
-    let _ = std::fs::remove_dir(&obj);
-    Ok(())
-}
-
 pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>, usd: Option<Res<UsdExport>>) -> bool {
     sink.is_some() || obj.is_some() || usd.is_some()
 }
@@ -199,7 +162,7 @@ fn render_mesh(
         let mut tris = Vec::new();
         for (fv, f0) in lf.entities().iter().filter_map(|f| faces.get(*f).ok()) {
             tris.push(fv.0);
-            prestrain.push(f0.map(|p| Prestrain::Face(p.0)));
+            prestrain.push(f0.map(|p| shading::Prestrain::Face(p.0)));
         }
         tris
     } else if let Some(lt) = lt {
@@ -207,7 +170,7 @@ fn render_mesh(
             lt.entities().iter().filter_map(|t| tets.get(*t).ok().map(|(tv, f0)| (tv.0, f0.map(|p| p.0)))).unzip();
         let (ents, as_idx) = mesh::compact(&tet_e);
         let surface = mesh::surface_faces_of_tets(&as_idx);
-        prestrain = surface.iter().map(|(_, t)| tet_f0[*t].map(Prestrain::Tet)).collect();
+        prestrain = surface.iter().map(|(_, t)| tet_f0[*t].map(shading::Prestrain::Tet)).collect();
         surface.into_iter().map(|(f, _)| f.map(|i| ents[i as usize])).collect()
     } else {
         Vec::new()
@@ -215,21 +178,6 @@ fn render_mesh(
     let (vertices_e, tris) = mesh::compact(&tris_e);
     let mut rm = RenderMesh { epoch, vertices: vertices_e, tris, ..Default::default() };
     let rest: Vec<DVec3> = rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.1 .0).unwrap_or_default()).collect();
-    rm.rest_area = rm.tris.iter().map(|t| shading::triangle_area(&rest, t)).collect();
-    for ((a, f0), t) in rm.rest_area.iter_mut().zip(&prestrain).zip(&rm.tris) {
-        match f0 {
-            Some(Prestrain::Face(f0)) => *a = shading::stress_free_area(*a, *f0),
-            Some(Prestrain::Tet(f0)) => {
-                let [p, q, r] = t.map(|v| rest[v as usize]);
-                *a = shading::stress_free_face_area(*a, (q - p).cross(r - p).normalize_or_zero(), *f0);
-            }
-            None => {}
-        }
-    }
+    rm.rest_area = shading::stress_free_areas(&rest, &rm.tris, &prestrain);
     rm
-}
-
-enum Prestrain {
-    Face(glam::DMat2),
-    Tet(glam::DMat3),
 }

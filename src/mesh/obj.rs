@@ -137,3 +137,40 @@ pub fn write(path: &Path, positions: &[DVec3], uv: &[DVec2], faces: &[[u32; 3]])
     }
     w.flush()
 }
+
+/// Removes the OBJ frames an earlier run wrote under `dir` (obj/<patch>/<layer>/<5 digits>.obj,
+/// and the folders that leaves empty), so that a rerun's folder holds only its own frames;
+/// nothing else is touched.
+pub fn clear_frames(dir: &std::path::Path) -> std::io::Result<()> {
+    let obj = dir.join("obj");
+    let folders = |d: &std::path::Path| -> std::io::Result<Vec<std::path::PathBuf>> {
+        let mut v = Vec::new();
+        for e in std::fs::read_dir(d)? {
+            let e = e?;
+            if e.file_type()?.is_dir() {
+                v.push(e.path());
+            }
+        }
+        Ok(v)
+    };
+    if !obj.is_dir() {
+        return Ok(());
+    }
+    for patch in folders(&obj)? {
+        for layer in folders(&patch)? {
+            for e in std::fs::read_dir(&layer)? {
+                let path = e?.path();
+                let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+                let frame =
+                    name.strip_suffix(".obj").is_some_and(|s| s.len() == 5 && s.bytes().all(|b| b.is_ascii_digit()));
+                if frame && path.is_file() {
+                    std::fs::remove_file(&path)?;
+                }
+            }
+            let _ = std::fs::remove_dir(&layer); // (only when empty)
+        }
+        let _ = std::fs::remove_dir(&patch);
+    }
+    let _ = std::fs::remove_dir(&obj);
+    Ok(())
+}

@@ -98,6 +98,29 @@ impl ColourBy {
 /// The area strain at which the strain colour saturates.
 pub const STRAIN_SATURATION: f64 = 0.1;
 
+/// A drawn triangle's prestrain: a shell face's F0, or that of the tet a boundary face bounds.
+pub enum Prestrain {
+    Face(glam::DMat2),
+    Tet(glam::DMat3),
+}
+
+/// Per triangle the area its elastic strain is measured from: the rest area, or with a
+/// prestrain the stress-free shape's.
+pub fn stress_free_areas(rest: &[DVec3], tris: &[[u32; 3]], prestrain: &[Option<Prestrain>]) -> Vec<f64> {
+    let mut areas: Vec<f64> = tris.iter().map(|t| triangle_area(rest, t)).collect();
+    for ((a, f0), t) in areas.iter_mut().zip(prestrain).zip(tris) {
+        match f0 {
+            Some(Prestrain::Face(f0)) => *a = stress_free_area(*a, *f0),
+            Some(Prestrain::Tet(f0)) => {
+                let [p, q, r] = t.map(|v| rest[v as usize]);
+                *a = stress_free_face_area(*a, (q - p).cross(r - p).normalize_or_zero(), *f0);
+            }
+            None => {}
+        }
+    }
+    areas
+}
+
 /// The stress-free area of a boundary face (area `rest_area`, unit normal `normal`) of a tet
 /// whose prestrain is `f0` (F = dx/dX F0): the face mapped by F0^-1 has the area
 /// |F0^T n| rest_area / det(F0) (Nanson's formula).

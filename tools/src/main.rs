@@ -415,7 +415,7 @@ fn run(args: RunArgs) -> ExitCode {
 /// What an earlier run into `out` left that this one would not overwrite: its OBJ frames, and
 /// its stats.jsonl and recording.rrd when this run writes none there. Nothing else is touched.
 fn clear_earlier_outputs(args: &RunArgs, scene: &BuiltScene, out: &Path) -> std::io::Result<()> {
-    skinsim_systems::log::clear_obj_frames(out)?;
+    skinsim::mesh::obj::clear_frames(out)?;
     let records_here = !args.no_rerun && !args.spawn && args.connect.is_none() && args.rrd.is_none();
     // An earlier stage goes in any case: this run's is written when it ends.
     let stale = [
