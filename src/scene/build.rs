@@ -189,10 +189,10 @@ impl Builder {
         let offset = DVec3::new(p.offset.0, p.offset.1, p.offset.2) * len;
         // (checked here, not only on the final geometry: a non-finite offset would first make a
         // driver's selection come out empty and be blamed on it)
-        if !(0.0..=super::spawn::MAX_COORDINATE).contains(&offset.abs().max_element()) {
+        if !(0.0..=super::geometry::MAX_COORDINATE).contains(&offset.abs().max_element()) {
             let message = format!(
                 "must be finite and within +-{} m of the origin (got {:?})",
-                super::spawn::MAX_COORDINATE,
+                super::geometry::MAX_COORDINATE,
                 p.offset
             );
             return Err(self.err(format!("{at}.offset"), message));
@@ -230,7 +230,7 @@ impl Builder {
             .collect::<Result<_, _>>()?;
         let anchors = p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &cx)).transpose()?;
         let patch = BuiltPatch { name: p.name.clone(), solver, perturbation, layers, drivers, couplings, anchors };
-        if let Some((li, message)) = super::spawn::geometry_error(&patch) {
+        if let Some((li, message)) = super::geometry::geometry_error(&patch) {
             return Err(self.err(format!("{at}.layers[{li}] (\"{}\").mesh", patch.layers[li].name), message));
         }
         Ok(patch)

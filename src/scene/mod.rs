@@ -8,6 +8,7 @@ mod build;
 pub mod built;
 mod couplings;
 mod drivers;
+mod geometry;
 pub mod error;
 mod layers;
 mod meshes;
