@@ -8,6 +8,9 @@ use skinsim::model::*;
 
 use crate::log::RerunSink;
 
+/// An anchor's dot, in UI points.
+const ANCHOR_DOT: f32 = 1.5;
+
 pub fn log_anchors(
     sink: Res<RerunSink>,
     patches: Query<(&Patch, Option<&AnchorReport>)>,
@@ -29,8 +32,11 @@ pub fn log_anchors(
         });
         let base = format!("patches/{}/{}/anchors", patch.name, layer.name);
         let points = states.iter().map(|(_, s)| f3(s.position));
+        // Screen-sized dots: anchors sit at every vertex and face centre, so any radius in metres
+        // either hides the skin when zoomed in or vanishes when zoomed out.
+        let radius = rerun::components::Radius::new_ui_points(ANCHOR_DOT);
         let _ =
-            rec.log(format!("{base}/points"), &rerun::Points3D::new(points).with_colors(colours).with_radii([0.0002]));
+            rec.log(format!("{base}/points"), &rerun::Points3D::new(points).with_colors(colours).with_radii([radius]));
         let springs = states.iter().map(|(a, s)| {
             let skin = match a.skin {
                 SkinPoint::Vertex(v) => at(v),
