@@ -141,8 +141,10 @@ fn apply(text: &str, m: &Mutation) -> String {
             let k = k % lines.len().max(1);
             lines.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, l)| *l).collect::<Vec<_>>().join("\n")
         }
+        // (a text cut to nothing by an earlier mutation has no line to repeat)
+        Mutation::RepeatLine(_) if lines.is_empty() => text.to_string(),
         Mutation::RepeatLine(k) => {
-            let k = k % lines.len().max(1);
+            let k = k % lines.len();
             let mut v = lines.clone();
             v.insert(k, lines[k]);
             v.join("\n")
