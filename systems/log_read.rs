@@ -22,6 +22,8 @@ pub struct RecordingIndex {
     pub blueprint: BTreeSet<String>,
     /// Entity path -> the last text document logged to it (the colour legend).
     pub documents: BTreeMap<String, String>,
+    /// Entity path -> the radii it was last logged with (negative: UI points, Rerun's encoding).
+    pub radii: BTreeMap<String, Vec<f32>>,
 }
 
 pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error::Error>> {
@@ -57,6 +59,13 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
                 if field.as_str() == "TextDocument:text" {
                     if let Some(last) = texts(rows).pop() {
                         index.documents.insert(entity.clone(), last);
+                    }
+                }
+                if field.as_str().ends_with(":radii") && !rows.is_empty() {
+                    let last = rows.value(rows.len() - 1);
+                    let r = last.as_any().downcast_ref::<rerun::external::arrow::array::Float32Array>();
+                    if let Some(r) = r {
+                        index.radii.insert(entity.clone(), r.values().to_vec());
                     }
                 }
                 if field.as_str().ends_with("vertex_colors") && !rows.is_empty() {

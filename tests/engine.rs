@@ -3,7 +3,7 @@
 
 mod common;
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::hash::{Hash, Hasher};
 
 use bevy_ecs::prelude::*;
@@ -11,6 +11,7 @@ use common::*;
 use skinsim::model::{Position, Stage};
 use skinsim::scene::{load_str, BuiltScene};
 use skinsim_systems::log::{ObjExport, RerunSink};
+use skinsim_systems::log_read::RecordingIndex;
 use skinsim_systems::{Simulation, StageSet};
 
 /// Records which stage sets ran, in order (the bevy_ecs schedule-test pattern).
@@ -191,7 +192,7 @@ fn a_non_finite_state_stops_the_run_and_names_the_frame_and_patch() {
 fn the_recording_holds_every_layer_and_frame() {
     let mut scene = load("strip_wrinkles.ron");
     scene.scene.frames = 3;
-    let (frames, sim_time) = record(&scene, "strip");
+    let RecordingIndex { frames, sim_time, .. } = record(&scene, "strip");
     // sim_time in nanoseconds: frames 1..3 at 1/30 s.
     let expected: BTreeSet<i64> = (1..=3).map(|f| (f as f64 / 30.0 * 1e9).round() as i64).collect();
     assert_eq!(sim_time, expected);
@@ -207,7 +208,7 @@ fn the_recording_holds_every_layer_and_frame() {
 fn the_recording_holds_the_material_space_mesh_of_a_remeshed_layer() {
     let mut scene = load("lk14/remesh_one_layer_quick.ron");
     scene.scene.frames = 2;
-    let (frames, _) = record(&scene, "remesh");
+    let frames = record(&scene, "remesh").frames;
     for entity in ["/patches/skin/dermis", "/material/skin/dermis", "/material/skin/dermis/edges"] {
         let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
         assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2], "{entity}");
@@ -215,12 +216,15 @@ fn the_recording_holds_the_material_space_mesh_of_a_remeshed_layer() {
     assert!(!frames.contains_key("/material/skin/base"));
 }
 
-/// KCK18: body, skin, anchors (points and springs) and the largest jump of each method.
+/// KCK18: body, skin, anchors (points and springs) and the largest jump of each method; the
+/// anchors are screen-sized dots (a radius in metres at every vertex and face centre hid the
+/// skin).
 #[test]
 fn the_recording_holds_the_anchors_of_each_method() {
     let mut scene = load("kck18/crease_quick.ron");
     scene.scene.frames = 2;
-    let (frames, _) = record(&scene, "kck18");
+    let index = record(&scene, "kck18");
+    let frames = &index.frames;
     for patch in ["walk", "project", "ring"] {
         for entity in [
             format!("/patches/{patch}/body"),
@@ -232,12 +236,17 @@ fn the_recording_holds_the_anchors_of_each_method() {
             let f = frames.get(&entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
             assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2], "{entity}");
         }
+        let radii = &index.radii[&format!("/patches/{patch}/skin/anchors/points")];
+        assert!(
+            !radii.is_empty() && radii.iter().all(|r| *r < 0.0),
+            "{patch}: anchor radii {radii:?} not in UI points"
+        );
     }
 }
 
 /// Runs a scene into an .rrd file and reads it back with Rerun's own decoder: the frames each
-/// entity was logged at, and every sim_time.
-fn record(scene: &BuiltScene, tag: &str) -> (BTreeMap<String, BTreeSet<i64>>, BTreeSet<i64>) {
+/// entity was logged at, every sim_time, radii.
+fn record(scene: &BuiltScene, tag: &str) -> RecordingIndex {
     let path = std::env::temp_dir().join(format!("skinsim-rec-{tag}-{}.rrd", std::process::id()));
     {
         let rec = rerun::RecordingStreamBuilder::new("skinsim").recording_id("test").save(&path).unwrap();
@@ -250,7 +259,7 @@ fn record(scene: &BuiltScene, tag: &str) -> (BTreeMap<String, BTreeSet<i64>>, BT
     }
     let index = skinsim_systems::log_read::read_recording(&path).unwrap();
     let _ = std::fs::remove_file(&path);
-    (index.frames, index.sim_time)
+    index
 }
 
 /// Implicit Euler with no forces moves every free vertex by h v exactly (the inertia term of the
