@@ -56,7 +56,8 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
         layers.push(layer);
         layer_vertices.push(verts);
     }
-    let (motion, captures) = spawn_drivers(world, p, &layers, &layer_vertices, &all_rest);
+    let (lo, hi) = mesh::bounds(&all_rest);
+    let (motion, captures) = spawn_drivers(world, p, &layers, &layer_vertices, 0.5 * (lo + hi));
     for c in &p.couplings {
         let batch: Vec<_> = c
             .kernels
@@ -82,19 +83,18 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     patch
 }
 
-/// The patch's drivers (scene `drivers`): motions and captures returned for the patch entity,
-/// attachment springs, plane-strain and periodic ties and seam hinges spawned.
+/// The patch's drivers (scene `drivers`): motions (about `centre`, the rest bounding box's) and
+/// captures returned for the patch entity, attachment springs, plane-strain and periodic ties
+/// and seam hinges spawned.
 fn spawn_drivers(
     world: &mut World,
     p: &BuiltPatch,
     layers: &[Entity],
     layer_vertices: &[Vec<Entity>],
-    all_rest: &[glam::DVec3],
+    centre: glam::DVec3,
 ) -> (PatchMotion, Vec<Capture>) {
-    let mut motion = PatchMotion::default();
+    let mut motion = PatchMotion { centre, ..Default::default() };
     let mut captures = Vec::new();
-    let (lo, hi) = mesh::bounds(all_rest);
-    motion.centre = 0.5 * (lo + hi);
     for d in &p.drivers {
         match d {
             BuiltDriver::Compress { layers: ls, axis, keyframes, predict } => motion.motions.push(Motion {
