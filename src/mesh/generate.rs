@@ -97,7 +97,8 @@ pub fn grid(size: DVec2, cells: (u32, u32), pattern: GridPattern, z: f64) -> Sur
 /// times the top one (1 = uniform; > 1 refines towards the surface). Each grid cell is a
 /// pair of triangles; each triangular prism is split into three tetrahedra with the diagonal
 /// rule "lower-numbered bottom vertex to higher-numbered top vertex", which makes neighbouring
-/// prisms conform. Returns the mesh and, per tet, the index of its layer.
+/// prisms conform. Each grid cell of a level is one hexahedral cell of six tetrahedra
+/// (`TetMesh::cells`). Returns the mesh and, per tet, the index of its layer.
 pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f64)]) -> (TetMesh, Vec<u32>) {
     let (nx, ny) = (cells.0 as usize, cells.1 as usize);
     let mut zs = Vec::new();
@@ -133,6 +134,7 @@ pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f
         for j in 0..ny {
             for i in 0..nx {
                 let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+                let cell = ((k * ny + j) * nx + i) as u32;
                 for tri in [[a, b, c], [a, c, d]] {
                     let mut t = tri;
                     t.sort_unstable();
@@ -145,6 +147,7 @@ pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f
                         [bot(i0), topv(i0), topv(j0), topv(k0)],
                     ] {
                         mesh.tets.push(orient(&mesh.rest, tet));
+                        mesh.cells.push(cell);
                         layer.push(li);
                     }
                 }
@@ -204,5 +207,15 @@ mod tests {
         // A conforming mesh's boundary is exactly the box surface: 2 (nx ny + nx nz + ny nz) quads.
         let surf = surface_of_tets(&m.tets);
         assert_eq!(surf.len(), 2 * 2 * (4 * 2 + 4 * 3 + 2 * 3));
+        // Cells: six tets each, eight distinct corners, filling one grid cell of one level.
+        assert_eq!(m.cells.len(), m.tets.len());
+        for c in 0..(4 * 2 * 3) as u32 {
+            let tets: Vec<_> = m.tets.iter().zip(&m.cells).filter(|(_, &k)| k == c).map(|(t, _)| *t).collect();
+            assert_eq!(tets.len(), 6, "cell {c}");
+            let mut corners: Vec<u32> = tets.iter().flatten().copied().collect();
+            corners.sort_unstable();
+            corners.dedup();
+            assert_eq!(corners.len(), 8, "cell {c}");
+        }
     }
 }

@@ -34,4 +34,6 @@ pub struct SurfaceMesh {
 pub struct TetMesh {
     pub rest: Vec<DVec3>,
     pub tets: Vec<[u32; 4]>,
+    /// Per tet, the hexahedral cell it fills with five others (`physics::cell`).
+    pub cells: Vec<u32>,
 }

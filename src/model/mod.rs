@@ -73,6 +73,8 @@ pub struct Material {
     pub density: f64,
     /// Lame parameters used by the elements (plane stress for shells).
     pub lame: Lame,
+    /// Where a volume layer's lambda term is evaluated: per tet, or once per cell.
+    pub volume_element: crate::physics::cell::VolumeElement,
 }
 
 /// Shell thickness (m).
@@ -315,6 +317,11 @@ pub struct TetVerts(pub [Entity; 4]);
 
 #[derive(Component, Clone, Copy, Debug)]
 pub struct TetRestShape(pub crate::physics::tet::TetRest);
+
+/// The hexahedral cell of its layer a tet belongs to (six tets, eight vertices): in a layer
+/// whose material has `VolumeElement::Cell`, the cell's tets share one dilatation.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TetCell(pub u32);
 
 /// Tetrahedron prestrain F0 (world axes); identity when absent. TetRestShape holds it folded in.
 #[derive(Component, Clone, Copy, Debug)]

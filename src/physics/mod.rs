@@ -6,6 +6,7 @@
 //! derivatives with respect to the deformation gradient (second-order forward AD). The chain
 //! rule from F to vertex positions is linear (F = Ds B), so it is applied in closed form.
 
+pub mod cell;
 pub mod dual;
 pub mod gaussian_bending;
 pub mod hinge;

@@ -11,6 +11,7 @@ use super::schema::*;
 use super::SceneError;
 use crate::mesh;
 use crate::model::{LayerKind, WeightMap};
+use crate::physics::cell::VolumeElement;
 use crate::physics::{plate_rigidity, BendingElement, Lame};
 
 /// A layer's material as stated or taken from its preset (scene units).
@@ -65,12 +66,21 @@ impl Builder {
                     LayerKind::Shell => Lame::plane_stress(young, m.poisson),
                     _ => Lame::solid(young, m.poisson),
                 };
+                let volume_element = match (l.kind, spec.volume_element) {
+                    (LayerKind::Volume, Some(v)) => v,
+                    (LayerKind::Volume, None) => VolumeElement::default_for(m.poisson),
+                    (_, None) => VolumeElement::Tet,
+                    (_, Some(_)) => {
+                        return Err(self.err(format!("{at}.material.volume_element"), "only volume layers have one"))
+                    }
+                };
                 material = Some(crate::model::Material {
                     model: m.model,
                     young,
                     poisson: m.poisson,
                     density: m.density,
                     lame,
+                    volume_element,
                 });
                 match (l.kind, m.thickness) {
                     (LayerKind::Shell, None) => {

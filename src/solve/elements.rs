@@ -3,6 +3,7 @@
 
 use glam::DVec3;
 
+use crate::physics::cell::{CellRest, Dilatation, CELL_TETS, CELL_VERTS};
 use crate::physics::hinge::HingeRest;
 use crate::physics::membrane::MembraneRest;
 use crate::physics::tet::TetRest;
@@ -42,6 +43,42 @@ pub struct TetElem {
     pub lame: Lame,
 }
 
+/// The shared dilatation of a cell of tetrahedra (`physics::cell`).
+#[derive(Clone, Copy, Debug)]
+pub struct CellElem {
+    pub v: [u32; CELL_VERTS],
+    pub rest: CellRest,
+}
+
+impl CellElem {
+    /// The cell of six tetrahedra over eight distinct vertices (their lambda terms, to be
+    /// evaluated here instead); None for any other group.
+    pub fn from_tets(tets: &[TetElem]) -> Option<CellElem> {
+        if tets.len() != CELL_TETS {
+            return None;
+        }
+        let mut v = Vec::with_capacity(CELL_VERTS);
+        for t in tets {
+            for &i in &t.v {
+                if !v.contains(&i) {
+                    v.push(i);
+                }
+            }
+        }
+        let v: [u32; CELL_VERTS] = v.try_into().ok()?;
+        let local = |i: u32| v.iter().position(|&w| w == i).unwrap() as u8;
+        let rest = CellRest {
+            tets: std::array::from_fn(|e| tets[e].v.map(local)),
+            // V_e det(B_e): V_e J_e = w_e det(Ds_e), prestrain included.
+            weight: std::array::from_fn(|e| tets[e].rest.volume * tets[e].rest.b.determinant()),
+            volume: tets.iter().map(|t| t.rest.volume).sum(),
+            bulk: tets.iter().map(|t| t.lame.lambda * t.rest.volume).sum(),
+            dilatation: Dilatation::of(tets[0].model),
+        };
+        Some(CellElem { v, rest })
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct SpringElem {
     pub v: [u32; 2],
@@ -67,6 +104,8 @@ pub struct Elements {
     /// Its Gaussian-curvature term, per triangle (`gaussian_bending`).
     pub gaussian: Vec<GaussianElem>,
     pub tets: Vec<TetElem>,
+    /// The lambda terms of volume layers with `VolumeElement::Cell` (their tets have lambda 0).
+    pub cells: Vec<CellElem>,
     pub springs: Vec<SpringElem>,
     /// Anchors at skin vertices and at skin face barycentres (KCK18 section 3).
     pub vertex_anchors: Vec<AnchorElem<1>>,
@@ -81,7 +120,8 @@ impl Elements {
     /// round-off in an energy evaluation, whose densities cancel O(1) terms to O(strain^2).
     pub fn energy_scale(&self, length: f64) -> f64 {
         let m: f64 = self.membranes.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum();
-        let t: f64 = self.tets.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum();
+        let t: f64 = self.tets.iter().map(|e| (e.lame.mu + e.lame.lambda.abs()) * e.rest.volume).sum::<f64>()
+            + self.cells.iter().map(|e| e.rest.bulk.abs()).sum::<f64>();
         let h: f64 = self.hinges.iter().map(|e| e.rest.weight).sum();
         let s: f64 = self.springs.iter().map(|e| e.k).chain(self.face_springs.iter().map(|e| e.k)).sum::<f64>()
             * length

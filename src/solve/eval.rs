@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use super::elements::{AnchorElem, Elements};
 use super::pattern::{pairs, Pattern, DOUBLE, NONE};
 use crate::physics::psd::Filter;
-use crate::physics::{gaussian_bending, hinge, membrane, spring, tet, QuadraticBending};
+use crate::physics::{cell, gaussian_bending, hinge, membrane, spring, tet, QuadraticBending};
 
 /// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
 const CHUNK: usize = 1024;
@@ -49,7 +49,8 @@ pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
         bending: sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &e.positions(x)))
             + elements.quadratic.energy(x)
             + sum_chunks(&elements.gaussian, |e| gaussian_bending::energy(e, &gather(x, &e.v))),
-        volume: sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
+        volume: sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v)))
+            + sum_chunks(&elements.cells, |e| cell::energy(&e.rest, &gather(x, &e.v))),
         springs: sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize]))
             + sum_chunks(&elements.vertex_anchors, |e| anchor_energy(e, x))
             + sum_chunks(&elements.face_anchors, |e| anchor_energy(e, x))
@@ -108,6 +109,12 @@ pub fn assemble(
         &pattern.tets,
         |e| e.v,
         |e| tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
+    );
+    out.parts.volume += acc.class::<_, 8, 24>(
+        &el.cells,
+        &pattern.cells,
+        |e| e.v,
+        |e| cell::eval(&e.rest, &gather(x, &e.v), filter),
     );
     out.parts.springs = acc.class::<_, 2, 6>(
         &el.springs,
@@ -299,6 +306,9 @@ pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
     }
     for e in &el.tets {
         add(&e.v, tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
+    }
+    for e in &el.cells {
+        add(&e.v, cell::eval(&e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
     }
     for e in &el.springs {
         let d = spring::gradient(e.k, x[e.v[0] as usize], x[e.v[1] as usize]);

@@ -20,7 +20,7 @@ pub mod settle;
 pub mod stability;
 mod trust_region;
 
-pub use elements::{AnchorElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
+pub use elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
 pub use error::SolveError;
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};
 pub use packed::{PackedPatch, PackedState, SolverCache};

@@ -26,6 +26,7 @@ pub struct Pattern {
     /// The quadratic element's Gaussian term, per triangle.
     pub gaussian: Vec<u32>,
     pub tets: Vec<u32>,
+    pub cells: Vec<u32>,
     pub springs: Vec<u32>,
     pub vertex_anchors: Vec<u32>,
     pub face_anchors: Vec<u32>,
@@ -94,6 +95,7 @@ impl Pattern {
         (0..elements.quadratic.len()).for_each(|i| link(elements.quadratic.stencil(i).0));
         elements.gaussian.iter().for_each(|e| link(&e.v));
         elements.tets.iter().for_each(|e| link(&e.v));
+        elements.cells.iter().for_each(|e| link(&e.v));
         elements.springs.iter().for_each(|e| link(&e.v));
         elements.face_anchors.iter().for_each(|e| link(&e.v));
         elements.face_springs.iter().for_each(|e| link(&e.v));
@@ -162,6 +164,7 @@ impl Pattern {
             quadratic: Vec::new(),
             gaussian: Vec::new(),
             tets: Vec::new(),
+            cells: Vec::new(),
             springs: Vec::new(),
             vertex_anchors: Vec::new(),
             face_anchors: Vec::new(),
@@ -174,6 +177,7 @@ impl Pattern {
             (0..elements.quadratic.len()).flat_map(|i| p.stencil_map(elements.quadratic.stencil(i).0)).collect();
         p.gaussian = elements.gaussian.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.tets = elements.tets.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        p.cells = elements.cells.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.springs = elements.springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.vertex_anchors = elements.vertex_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
         p.face_anchors = elements.face_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();

@@ -39,7 +39,11 @@ pub struct ElementItems<'w, 's> {
     pub rest: Query<'w, 's, &'static RestPos>,
     pub faces: Query<'w, 's, (&'static FaceVerts, Option<&'static FaceRest>, Option<&'static ModulusScale>)>,
     pub hinges: Query<'w, 's, (&'static EdgeVerts, &'static Hinge)>,
-    pub tets: Query<'w, 's, (&'static TetVerts, &'static TetRestShape, Option<&'static ModulusScale>)>,
+    pub tets: Query<
+        'w,
+        's,
+        (&'static TetVerts, &'static TetRestShape, Option<&'static ModulusScale>, Option<&'static TetCell>),
+    >,
     pub springs: Query<'w, 's, &'static Spring>,
     pub face_springs: Query<'w, 's, &'static FaceSpring>,
     pub anchors: Query<'w, 's, (&'static Anchor, &'static AnchorState)>,

@@ -5,7 +5,8 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
 use skinsim::physics::{BendingElement, QuadraticBending};
-use skinsim::solve::{AnchorElem, Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
+use skinsim::physics::cell::VolumeElement;
+use skinsim::solve::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
 
 use super::{ElementItems, LayerItems, LayerItemsItem};
 
@@ -102,12 +103,26 @@ pub(super) fn rebuild(
         }
         if let (Some(lt), Some(m)) = (layer.tets, material) {
             tet_count += lt.entities().len();
+            let mut tets = Vec::with_capacity(lt.entities().len());
+            let mut cells = std::collections::BTreeMap::<u32, Vec<usize>>::new();
             for &t in lt.entities() {
-                if let Ok((tv, rest, scale)) = items.tets.get(t) {
+                if let Ok((tv, rest, scale, cell)) = items.tets.get(t) {
                     let lame = m.lame.scaled(scale.map_or(1.0, |s| s.0));
-                    el.tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame });
+                    if let (VolumeElement::Cell, Some(c)) = (m.volume_element, cell) {
+                        cells.entry(c.0).or_default().push(tets.len());
+                    }
+                    tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame });
                 }
             }
+            // Cells take their tets' lambda terms (physics::cell).
+            for members in cells.values() {
+                let group: Vec<TetElem> = members.iter().map(|&i| tets[i]).collect();
+                if let Some(c) = CellElem::from_tets(&group) {
+                    el.cells.push(c);
+                    members.iter().for_each(|&i| tets[i].lame.lambda = 0.0);
+                }
+            }
+            el.tets.extend(tets);
         }
         if let Some(ls) = layer.springs {
             for &s in ls.entities() {

@@ -5,6 +5,7 @@
 
 use std::time::Instant;
 
+use skinsim::physics::cell::VolumeElement;
 use skinsim::scene::{load_str, SceneError};
 use skinsim_systems::Simulation;
 
@@ -30,6 +31,8 @@ pub struct FilmSubstrate {
     /// Increments up to `max_strain` x the expected onset strain.
     pub increments: u32,
     pub max_strain: f64,
+    /// The substrate's volume element; None: the default for its Poisson's ratio.
+    pub volume_element: Option<VolumeElement>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -140,6 +143,7 @@ impl FilmSubstrate {
             grading: 1.0,
             increments: 30,
             max_strain: 3.0,
+            volume_element: None,
         }
     }
 
@@ -187,7 +191,7 @@ impl FilmSubstrate {
         layers: [
             Layer(name: "substrate", kind: Volume,
                 mesh: TetSlab(size: ({length}, {dx}), cells: ({cells}, 1), depth: {depth}, elements: {de}, grading: {grading}),
-                material: (young: {young_s}, poisson: {ns})),
+                material: (young: {young_s}, poisson: {ns}{element})),
             Layer(name: "film", kind: Shell, mesh: SurfaceOf(layer: "substrate"),
                 material: (young: {young_f}, poisson: {nf}, thickness: 1.0), bending: (model: Tan)),
         ],
@@ -203,6 +207,7 @@ impl FilmSubstrate {
             frames = self.increments,
             de = self.depth_elements,
             grading = self.grading,
+            element = self.volume_element.map_or(String::new(), |v| format!(", volume_element: {v:?}")),
         )
     }
 

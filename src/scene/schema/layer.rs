@@ -235,6 +235,11 @@ pub struct MaterialSpec {
     /// Shell thickness (length units); shells only.
     #[serde(default)]
     pub thickness: Option<f64>,
+    /// Volume layers only: `Tet` evaluates the model's lambda term in every tetrahedron, `Cell`
+    /// once per hexahedral cell of six (no volumetric locking near incompressibility). Default:
+    /// `Cell` from Poisson's ratio `physics::cell::CELL_FROM_POISSON` up, else `Tet`.
+    #[serde(default)]
+    pub volume_element: Option<crate::physics::cell::VolumeElement>,
 }
 
 /// Reference materials (LK14 5.2): the two-layer skin model and the soft substructure under
