@@ -125,3 +125,41 @@ fn periodic_and_plane_strain_ties_hold_after_solving() {
     // The compression really deformed the strip.
     assert!(body.state.x.iter().any(|p| p.z.abs() > 1e-7));
 }
+
+/// Issue 27: a volume layer at Poisson's ratio 0.495 evaluates its lambda term once per
+/// hexahedral cell (six tets) by default, one at 0.45 or with `volume_element: Tet` per tet.
+#[test]
+fn nearly_incompressible_layers_share_one_dilatation_per_cell() {
+    let packed = |text: &str| {
+        let scene = load_str(text, &scene_path("cells.ron")).unwrap();
+        let mut sim = Simulation::new(&scene);
+        let s = sim.step();
+        assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+        let mut q = sim.world.query::<&PackedPatch>();
+        let el = q.single(&sim.world).unwrap().elements.clone();
+        (el, s.patches[0].energy)
+    };
+    let stiff = STACK.replace("poisson: 0.45, density: 1000.0", "poisson: 0.495, density: 1000.0").replace(
+        "poisson: 0.45, density: 1200.0",
+        "poisson: 0.495, density: 1200.0",
+    );
+    let (cells, e_cell) = packed(&stiff);
+    // 4 x 2 grid cells through 2 + 3 levels.
+    assert_eq!(cells.cells.len(), 4 * 2 * 5);
+    assert_eq!(cells.tets.len(), 6 * 4 * 2 * 5);
+    assert!(cells.tets.iter().all(|t| t.lame.lambda == 0.0));
+    let bulk: f64 = cells.cells.iter().map(|c| c.rest.bulk).sum();
+    let lambda = |young: f64| young * 0.495 / (1.495 * 0.01);
+    let expected = lambda(13e3) * 4e-3 * 2e-3 * 1.5e-3 + lambda(1e3) * 4e-3 * 2e-3 * 1e-3;
+    assert!((bulk / expected - 1.0).abs() < 1e-12, "{bulk} vs {expected}");
+    let per_tet = stiff.replace("poisson: 0.495, density: 1000.0", "poisson: 0.495, density: 1000.0, volume_element: Tet");
+    let (tets, e_tet) = packed(&per_tet.replace(
+        "poisson: 0.495, density: 1200.0",
+        "poisson: 0.495, density: 1200.0, volume_element: Tet",
+    ));
+    assert!(tets.cells.is_empty() && tets.tets.iter().all(|t| t.lame.lambda > 0.0));
+    // One constraint per cell instead of per tet: the same load finds a softer state.
+    assert!(e_cell < e_tet, "{e_cell} vs {e_tet}");
+    let (soft, _) = packed(STACK);
+    assert!(soft.cells.is_empty(), "0.45: per tet by default");
+}

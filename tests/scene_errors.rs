@@ -327,3 +327,12 @@ fn quadratic_bending_needs_a_flat_rest() {
         &["layers[1] (\"film\").mesh", "flat rest", "leaves its plane"],
     );
 }
+
+#[test]
+fn a_volume_element_belongs_to_a_volume_layer() {
+    let e = err(&GOOD.replace("poisson: 0.3, thickness: 0.1)", "poisson: 0.3, thickness: 0.1, volume_element: Cell)"));
+    mentions(&e, &["scene.ron", "layers[1] (\"film\").material.volume_element", "only volume layers"]);
+    let e = err(&GOOD.replace("poisson: 0.3, thickness: 0.1)", "poisson: 0.3, thickness: 0.1, volume_element: Hex)"));
+    assert!(e.position.is_some(), "{e}");
+    mentions(&e, &["Hex"]);
+}
