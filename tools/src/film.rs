@@ -6,6 +6,7 @@
 use std::time::Instant;
 
 use skinsim::physics::cell::VolumeElement;
+use skinsim::physics::ConstitutiveModel;
 use skinsim::scene::{load_str, SceneError};
 use skinsim_systems::Simulation;
 
@@ -33,6 +34,8 @@ pub struct FilmSubstrate {
     pub max_strain: f64,
     /// The substrate's volume element; None: the default for its Poisson's ratio.
     pub volume_element: Option<VolumeElement>,
+    /// The substrate's constitutive model.
+    pub substrate_model: ConstitutiveModel,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -144,6 +147,7 @@ impl FilmSubstrate {
             increments: 30,
             max_strain: 3.0,
             volume_element: None,
+            substrate_model: ConstitutiveModel::BazantHencky,
         }
     }
 
@@ -191,7 +195,7 @@ impl FilmSubstrate {
         layers: [
             Layer(name: "substrate", kind: Volume,
                 mesh: TetSlab(size: ({length}, {dx}), cells: ({cells}, 1), depth: {depth}, elements: {de}, grading: {grading}),
-                material: (young: {young_s}, poisson: {ns}{element})),
+                material: (model: {model:?}, young: {young_s}, poisson: {ns}{element})),
             Layer(name: "film", kind: Shell, mesh: SurfaceOf(layer: "substrate"),
                 material: (young: {young_f}, poisson: {nf}, thickness: 1.0), bending: (model: Tan)),
         ],
@@ -207,6 +211,7 @@ impl FilmSubstrate {
             frames = self.increments,
             de = self.depth_elements,
             grading = self.grading,
+            model = self.substrate_model,
             element = self.volume_element.map_or(String::new(), |v| format!(", volume_element: {v:?}")),
         )
     }
