@@ -9,6 +9,7 @@
 //! reproduces VALIDATION.md's 0.495 table (`film::layered_theory`, unit-tested).
 //! `cargo test --release -p skinsim-cli --test h15_validation -- --nocapture` prints the figures.
 
+use skinsim::physics::ConstitutiveModel;
 use skinsim_tools::film::{FilmResult, FilmSubstrate};
 
 fn report(name: &str, r: &FilmResult) {
@@ -73,6 +74,21 @@ fn case_8_finite_depth_on_a_rigid_base() {
 fn case_8_nearly_incompressible_as_validation_states_it() {
     // VALIDATION.md's table itself (nu_s = 0.495).
     case_8(0.495);
+}
+
+#[test]
+fn case_8_nearly_incompressible_with_each_model() {
+    // The cell's lambda term for Stable Neo-Hookean (exact split) and corotational (J - 1 in
+    // place of tr S - 3), H / lambda_inf = 0.2 (the per-tet element: wavelength -11 %, onset +36 %).
+    for model in [ConstitutiveModel::StableNeoHookean, ConstitutiveModel::Corotational] {
+        let mut setup = FilmSubstrate::on_rigid(0.2, 0.495, 20, 8);
+        setup.substrate_model = model;
+        let r = setup.run().unwrap();
+        report(&format!("case 8, H / lambda_inf = 0.2, nu_s = 0.495, {model:?}"), &r);
+        assert!(r.all_converged);
+        assert!(r.wavelength_error().abs() < 0.05, "{model:?}: wavelength {:+.3}", r.wavelength_error());
+        assert!(r.onset_error().abs() < 0.05, "{model:?}: onset {:+.3}", r.onset_error());
+    }
 }
 
 fn case_8(nu: f64) {
