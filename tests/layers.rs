@@ -139,10 +139,9 @@ fn nearly_incompressible_layers_share_one_dilatation_per_cell() {
         let el = q.single(&sim.world).unwrap().elements.clone();
         (el, s.patches[0].energy)
     };
-    let stiff = STACK.replace("poisson: 0.45, density: 1000.0", "poisson: 0.495, density: 1000.0").replace(
-        "poisson: 0.45, density: 1200.0",
-        "poisson: 0.495, density: 1200.0",
-    );
+    let stiff = STACK
+        .replace("poisson: 0.45, density: 1000.0", "poisson: 0.495, density: 1000.0")
+        .replace("poisson: 0.45, density: 1200.0", "poisson: 0.495, density: 1200.0");
     let (cells, e_cell) = packed(&stiff);
     // 4 x 2 grid cells through 2 + 3 levels.
     assert_eq!(cells.cells.len(), 4 * 2 * 5);
@@ -152,11 +151,11 @@ fn nearly_incompressible_layers_share_one_dilatation_per_cell() {
     let lambda = |young: f64| young * 0.495 / (1.495 * 0.01);
     let expected = lambda(13e3) * 4e-3 * 2e-3 * 1.5e-3 + lambda(1e3) * 4e-3 * 2e-3 * 1e-3;
     assert!((bulk / expected - 1.0).abs() < 1e-12, "{bulk} vs {expected}");
-    let per_tet = stiff.replace("poisson: 0.495, density: 1000.0", "poisson: 0.495, density: 1000.0, volume_element: Tet");
-    let (tets, e_tet) = packed(&per_tet.replace(
-        "poisson: 0.495, density: 1200.0",
-        "poisson: 0.495, density: 1200.0, volume_element: Tet",
-    ));
+    let per_tet =
+        stiff.replace("poisson: 0.495, density: 1000.0", "poisson: 0.495, density: 1000.0, volume_element: Tet");
+    let (tets, e_tet) = packed(
+        &per_tet.replace("poisson: 0.495, density: 1200.0", "poisson: 0.495, density: 1200.0, volume_element: Tet"),
+    );
     assert!(tets.cells.is_empty() && tets.tets.iter().all(|t| t.lame.lambda > 0.0));
     // One constraint per cell instead of per tet: the same load finds a softer state.
     assert!(e_cell < e_tet, "{e_cell} vs {e_tet}");

@@ -148,11 +148,7 @@ pub fn eval(rest: &CellRest, x: &[DVec3; CELL_VERTS], filter: Filter) -> (f64, S
             hb[0][1] = -skew(e3);
             hb[0][2] = skew(e2);
             hb[1][2] = -skew(e1);
-            for a in 0..3 {
-                for b in 0..a {
-                    hb[a][b] = hb[b][a].transpose();
-                }
-            }
+            (hb[1][0], hb[2][0], hb[2][1]) = (hb[0][1].transpose(), hb[0][2].transpose(), hb[1][2].transpose());
             let mut full = [[Matrix3::zeros(); 4]; 4];
             for a in 0..3 {
                 for b in 0..3 {
@@ -315,7 +311,17 @@ mod tests {
             let (mut rest, x0) = unit_cell(model, 0.0);
             rest.bulk = lame.lambda * rest.volume;
             for strain in [1e-3, 0.1] {
-                let f = glam::DMat3::from_cols_array(&[1.0 - strain, 0.2 * strain, 0.0, 0.1 * strain, 1.0, 0.3 * strain, 0.0, 0.0, 1.0 + 0.5 * strain]);
+                let f = glam::DMat3::from_cols_array(&[
+                    1.0 - strain,
+                    0.2 * strain,
+                    0.0,
+                    0.1 * strain,
+                    1.0,
+                    0.3 * strain,
+                    0.0,
+                    0.0,
+                    1.0 + 0.5 * strain,
+                ]);
                 let x: [DVec3; 8] = std::array::from_fn(|i| f * x0[i]);
                 let (mut e_full, mut g_full) = (0.0, SVector::<f64, N>::zeros());
                 let (mut e_split, mut g_split) = cell_parts(&rest, &x);
@@ -336,8 +342,11 @@ mod tests {
                 // Exact: to the round-off of densities that cancel O(1) terms (scale: the energy
                 // at unit strain); else to O(strain) relative.
                 let scale = lame.mu + lame.lambda;
-                let (tol_e, tol_g) =
-                    if exact { (1e-13 * scale, 1e-12 * scale) } else { (5.0 * strain * e_full, 5.0 * strain * g_full.norm()) };
+                let (tol_e, tol_g) = if exact {
+                    (1e-13 * scale, 1e-12 * scale)
+                } else {
+                    (5.0 * strain * e_full, 5.0 * strain * g_full.norm())
+                };
                 assert!((e_split - e_full).abs() < tol_e, "{model:?} {strain}: {e_split} vs {e_full}");
                 assert!((g_split - g_full).norm() < tol_g, "{model:?} {strain}: {}", (g_split - g_full).norm());
             }

@@ -352,7 +352,12 @@ fn spawn_layer(
             for (ti, t) in m.tets.iter().enumerate() {
                 let (rest, f0) = tet_rest(l, &m.rest, &uv, t);
                 let rest = rest.expect("checked tets");
-                let mut e = world.spawn((TetVerts(t.map(|i| verts[i as usize])), TetOf(layer), TetRestShape(rest), TetCell(m.cells[ti])));
+                let mut e = world.spawn((
+                    TetVerts(t.map(|i| verts[i as usize])),
+                    TetOf(layer),
+                    TetRestShape(rest),
+                    TetCell(m.cells[ti]),
+                ));
                 if let Some(f0) = f0 {
                     e.insert(TetPrestrain(f0));
                 }

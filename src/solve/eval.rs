@@ -110,12 +110,8 @@ pub fn assemble(
         |e| e.v,
         |e| tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
     );
-    out.parts.volume += acc.class::<_, 8, 24>(
-        &el.cells,
-        &pattern.cells,
-        |e| e.v,
-        |e| cell::eval(&e.rest, &gather(x, &e.v), filter),
-    );
+    out.parts.volume +=
+        acc.class::<_, 8, 24>(&el.cells, &pattern.cells, |e| e.v, |e| cell::eval(&e.rest, &gather(x, &e.v), filter));
     out.parts.springs = acc.class::<_, 2, 6>(
         &el.springs,
         &pattern.springs,
@@ -381,6 +377,104 @@ mod tests {
                         if pattern.position_of(r, d).is_some() { values[pattern.position(r, d) as usize] } else { 0.0 };
                     assert!((column - stored).abs() < 1e-5 * (1.0 + stored.abs()), "H[{r}, {d}]: {column} vs {stored}");
                 }
+            }
+        }
+    }
+
+    /// Issue 27: a slab whose tets share one dilatation per cell. The assembled gradient and
+    /// Hessian (cells scattered through their 8-vertex maps, bottom held) against central
+    /// differences of the energy, and the stability test's inertia against a dense eigen-solve,
+    /// at a stretched state (stable) and a strongly compressed, sheared one.
+    #[test]
+    fn cells_assemble_their_derivatives_and_inertia() {
+        use super::super::elements::{CellElem, TetElem};
+        use crate::physics::tet::TetRest;
+        use crate::physics::{ConstitutiveModel, Lame};
+        let (m, _) = crate::mesh::tet_slab(glam::DVec2::new(2.0, 1.0), (2, 1), 0.0, &[(1.0, 2, 1.0)]);
+        let lame = Lame::solid(1.0, 0.495);
+        let tets: Vec<TetElem> = m
+            .tets
+            .iter()
+            .map(|t| TetElem {
+                v: *t,
+                rest: TetRest::from_rest(t.map(|i| m.rest[i as usize]), glam::DMat3::IDENTITY).unwrap(),
+                model: ConstitutiveModel::BazantHencky,
+                lame,
+            })
+            .collect();
+        let mut el = Elements::default();
+        for c in 0..4u32 {
+            let group: Vec<TetElem> = tets.iter().zip(&m.cells).filter(|(_, &k)| k == c).map(|(t, _)| *t).collect();
+            el.cells.push(CellElem::from_tets(&group).expect("six tets over eight corners"));
+        }
+        el.tets = tets.into_iter().map(|t| TetElem { lame: Lame { lambda: 0.0, ..lame }, ..t }).collect();
+        let fixed: Vec<[bool; 3]> = m.rest.iter().map(|p| [p.z < -0.99; 3]).collect();
+        let tie: Vec<(u32, [bool; 3])> = (0..m.rest.len() as u32).map(|i| (i, [false; 3])).collect();
+        let volume = |y: &[DVec3]| energy(&el, y).volume;
+        for (stretch, shear) in [(1.05, 0.02), (0.55, 0.3)] {
+            let x: Vec<DVec3> = m
+                .rest
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let z = p.z + 1.0;
+                    DVec3::new(p.x + shear * z * z, p.y + 0.01 * (i as f64).cos() * z, -1.0 + stretch * z)
+                })
+                .collect();
+            let pattern = Pattern::build(&x, &fixed, &tie, &el);
+            let (mut grad, mut values) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+            let a = assemble(&el, &pattern, &x, Filter::Exact, &mut grad, &mut values);
+            assert!((a.parts.volume - volume(&x)).abs() < 1e-14);
+            let h = 1e-6;
+            for v in 0..x.len() {
+                for k in 0..3 {
+                    let d = pattern.dof[3 * v + k];
+                    if d == NONE {
+                        continue;
+                    }
+                    let shifted = |s: f64| {
+                        let mut y = x.clone();
+                        y[v][k] += s;
+                        y
+                    };
+                    let fd = (volume(&shifted(h)) - volume(&shifted(-h))) / (2.0 * h);
+                    assert!((fd - grad[d as usize]).abs() < 1e-6, "gradient at {v}.{k}: {fd} vs {}", grad[d as usize]);
+                    let (mut gp, mut vp) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+                    let (mut gm, mut vm) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+                    assemble(&el, &pattern, &shifted(h), Filter::Exact, &mut gp, &mut vp);
+                    assemble(&el, &pattern, &shifted(-h), Filter::Exact, &mut gm, &mut vm);
+                    for r in 0..pattern.n as u32 {
+                        let column = (gp[r as usize] - gm[r as usize]) / (2.0 * h);
+                        let stored = if pattern.position_of(r, d).is_some() {
+                            values[pattern.position(r, d) as usize]
+                        } else {
+                            0.0
+                        };
+                        assert!(
+                            (column - stored).abs() < 1e-5 * (1.0 + stored.abs()),
+                            "H[{r}, {d}]: {column} vs {stored}"
+                        );
+                    }
+                }
+            }
+            // Inertia: the LDL^T's count against the dense spectrum.
+            let mut dense = nalgebra::DMatrix::<f64>::zeros(pattern.n, pattern.n);
+            for c in 0..pattern.n {
+                let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
+                for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
+                    dense[(r as usize, c)] = v;
+                    dense[(c, r as usize)] = v;
+                }
+            }
+            let negative = nalgebra::SymmetricEigen::new(dense).eigenvalues.iter().filter(|&&l| l < 0.0).count();
+            let mut chol = super::super::linear::CholeskySolver::analyze(&pattern);
+            let verdict = super::super::stability::test(&pattern, &mut chol, &values).expect("an LDL^T");
+            match verdict {
+                super::super::stability::Verdict::Stable => assert_eq!(negative, 0, "{stretch}"),
+                super::super::stability::Verdict::Unstable { negative: k, .. } => assert_eq!(k, negative, "{stretch}"),
+            }
+            if stretch < 1.0 {
+                assert!(negative > 0, "the compressed, sheared slab is unstable: {negative}");
             }
         }
     }

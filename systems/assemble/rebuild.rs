@@ -4,8 +4,8 @@
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
-use skinsim::physics::{BendingElement, QuadraticBending};
 use skinsim::physics::cell::VolumeElement;
+use skinsim::physics::{BendingElement, QuadraticBending};
 use skinsim::solve::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
 
 use super::{ElementItems, LayerItems, LayerItemsItem};
