@@ -327,6 +327,45 @@ mod tests {
     use super::*;
     use crate::mesh::{edges, grid, GridPattern};
 
+    /// The assembled gradient and Hessian at x against central differences of `part` (the
+    /// energy) and of the assembled gradient, over every free DOF.
+    fn assert_derivatives(
+        el: &Elements,
+        pattern: &Pattern,
+        x: &[DVec3],
+        part: impl Fn(&[DVec3]) -> f64,
+        grad: &[f64],
+        values: &[f64],
+    ) {
+        let h = 1e-6;
+        for v in 0..x.len() {
+            for k in 0..3 {
+                let d = pattern.dof[3 * v + k];
+                if d == NONE {
+                    continue;
+                }
+                let shifted = |s: f64| {
+                    let mut y = x.to_vec();
+                    y[v][k] += s;
+                    y
+                };
+                let fd = (part(&shifted(h)) - part(&shifted(-h))) / (2.0 * h);
+                assert!((fd - grad[d as usize]).abs() < 1e-6, "gradient at {v}.{k}: {fd} vs {}", grad[d as usize]);
+                // Hessian column d against the central difference of gradients.
+                let (mut gp, mut vp) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+                let (mut gm, mut vm) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+                assemble(el, pattern, &shifted(h), Filter::Exact, &mut gp, &mut vp);
+                assemble(el, pattern, &shifted(-h), Filter::Exact, &mut gm, &mut vm);
+                for r in 0..pattern.n as u32 {
+                    let column = (gp[r as usize] - gm[r as usize]) / (2.0 * h);
+                    let stored =
+                        if pattern.position_of(r, d).is_some() { values[pattern.position(r, d) as usize] } else { 0.0 };
+                    assert!((column - stored).abs() < 1e-5 * (1.0 + stored.abs()), "H[{r}, {d}]: {column} vs {stored}");
+                }
+            }
+        }
+    }
+
     /// The assembled quadratic bending gradient and Hessian, with its Gaussian term, against
     /// central differences of the energy, on a bent sheet with a held boundary (NONE entries
     /// in the maps).
@@ -352,33 +391,7 @@ mod tests {
         let (mut grad, mut values) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
         let a = assemble(&el, &pattern, &x, Filter::Exact, &mut grad, &mut values);
         assert!((a.parts.bending - bending(&x)).abs() < 1e-15);
-        let h = 1e-6;
-        for v in 0..x.len() {
-            for k in 0..3 {
-                let d = pattern.dof[3 * v + k];
-                if d == NONE {
-                    continue;
-                }
-                let shifted = |s: f64| {
-                    let mut y = x.clone();
-                    y[v][k] += s;
-                    y
-                };
-                let fd = (bending(&shifted(h)) - bending(&shifted(-h))) / (2.0 * h);
-                assert!((fd - grad[d as usize]).abs() < 1e-6, "gradient at {v}.{k}: {fd} vs {}", grad[d as usize]);
-                // Hessian column d against the central difference of gradients.
-                let (mut gp, mut vp) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
-                let (mut gm, mut vm) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
-                assemble(&el, &pattern, &shifted(h), Filter::Exact, &mut gp, &mut vp);
-                assemble(&el, &pattern, &shifted(-h), Filter::Exact, &mut gm, &mut vm);
-                for r in 0..pattern.n as u32 {
-                    let column = (gp[r as usize] - gm[r as usize]) / (2.0 * h);
-                    let stored =
-                        if pattern.position_of(r, d).is_some() { values[pattern.position(r, d) as usize] } else { 0.0 };
-                    assert!((column - stored).abs() < 1e-5 * (1.0 + stored.abs()), "H[{r}, {d}]: {column} vs {stored}");
-                }
-            }
-        }
+        assert_derivatives(&el, &pattern, &x, |y| energy(&el, y).bending, &grad, &values);
     }
 
     /// Issue 27: a slab whose tets share one dilatation per cell. The assembled gradient and
@@ -425,38 +438,7 @@ mod tests {
             let (mut grad, mut values) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
             let a = assemble(&el, &pattern, &x, Filter::Exact, &mut grad, &mut values);
             assert!((a.parts.volume - volume(&x)).abs() < 1e-14);
-            let h = 1e-6;
-            for v in 0..x.len() {
-                for k in 0..3 {
-                    let d = pattern.dof[3 * v + k];
-                    if d == NONE {
-                        continue;
-                    }
-                    let shifted = |s: f64| {
-                        let mut y = x.clone();
-                        y[v][k] += s;
-                        y
-                    };
-                    let fd = (volume(&shifted(h)) - volume(&shifted(-h))) / (2.0 * h);
-                    assert!((fd - grad[d as usize]).abs() < 1e-6, "gradient at {v}.{k}: {fd} vs {}", grad[d as usize]);
-                    let (mut gp, mut vp) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
-                    let (mut gm, mut vm) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
-                    assemble(&el, &pattern, &shifted(h), Filter::Exact, &mut gp, &mut vp);
-                    assemble(&el, &pattern, &shifted(-h), Filter::Exact, &mut gm, &mut vm);
-                    for r in 0..pattern.n as u32 {
-                        let column = (gp[r as usize] - gm[r as usize]) / (2.0 * h);
-                        let stored = if pattern.position_of(r, d).is_some() {
-                            values[pattern.position(r, d) as usize]
-                        } else {
-                            0.0
-                        };
-                        assert!(
-                            (column - stored).abs() < 1e-5 * (1.0 + stored.abs()),
-                            "H[{r}, {d}]: {column} vs {stored}"
-                        );
-                    }
-                }
-            }
+            assert_derivatives(&el, &pattern, &x, volume, &grad, &values);
             // Inertia: the LDL^T's count against the dense spectrum.
             let mut dense = nalgebra::DMatrix::<f64>::zeros(pattern.n, pattern.n);
             for c in 0..pattern.n {
