@@ -6,7 +6,8 @@ use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
 use glam::DVec2;
-use skinsim::coupling::kernels::{adjust, sample, vertex_areas, Sample, SupportIndex};
+use skinsim::coupling::geodesic::SurfaceSpace;
+use skinsim::coupling::kernels::{adjust, sample, vertex_areas, KernelDistance, Sample, SupportIndex};
 use skinsim::model::*;
 
 /// One layer's material-space mesh, indexed for support queries.
@@ -22,23 +23,60 @@ pub fn resample_kernels(
     mut kernels: Query<(Ref<Kernel>, &mut KernelSamples)>,
     layers: Query<LayerMeshItems>,
     points: Query<&MaterialPos>,
+    rest: Query<&RestPos>,
     faces: Query<&FaceVerts>,
 ) {
     let mut spaces: HashMap<Entity, LayerSpace> = HashMap::new();
+    let mut surfaces: HashMap<Entity, (Vec<Entity>, SurfaceSpace)> = HashMap::new();
     let changed = |l: Entity| layers.get(l).is_ok_and(|(epoch, ..)| epoch.is_changed());
     for (kernel, mut samples) in &mut kernels {
         if !(kernel.is_changed() || changed(kernel.upper) || changed(kernel.lower)) {
             continue;
         }
-        let mut on = |layer: Entity| -> LayerWeights {
-            let space = spaces.entry(layer).or_insert_with(|| layer_space(layer, &layers, &points, &faces));
-            let s = sample(&space.index, &space.area, kernel.shape.centre, kernel.shape.radius);
-            s.vertices.iter().zip(&s.weights).map(|(&v, &w)| (space.vertices[v as usize], w)).collect()
+        let (centre, radius) = (kernel.shape.centre, kernel.shape.radius);
+        *samples = match kernel.distance {
+            KernelDistance::Planar => {
+                let mut on = |layer: Entity| -> LayerWeights {
+                    let space = spaces.entry(layer).or_insert_with(|| layer_space(layer, &layers, &points, &faces));
+                    let s = sample(&space.index, &space.area, centre, radius);
+                    s.vertices.iter().zip(&s.weights).map(|(&v, &w)| (space.vertices[v as usize], w)).collect()
+                };
+                KernelSamples { upper: on(kernel.upper), lower: on(kernel.lower), chart: Default::default() }
+            }
+            KernelDistance::Geodesic => {
+                let mut on = |layer: Entity| -> (LayerWeights, Vec<DVec2>) {
+                    let (vertices, space) = surfaces
+                        .entry(layer)
+                        .or_insert_with(|| surface_space(layer, &layers, &points, &rest, &faces));
+                    let s = space.sample(&space.locator(), centre, radius);
+                    let weights = s.sample.vertices.iter().zip(&s.sample.weights);
+                    (weights.map(|(&v, &w)| (vertices[v as usize], w)).collect(), s.chart)
+                };
+                let ((upper, cu), (lower, cl)) = (on(kernel.upper), on(kernel.lower));
+                KernelSamples { upper, lower, chart: [cu, cl] }
+            }
         };
-        let upper = on(kernel.upper);
-        let lower = on(kernel.lower);
-        *samples = KernelSamples { upper, lower };
     }
+}
+
+/// One layer's rest surface for geodesic kernels, with its vertices in index order.
+fn surface_space(
+    layer: Entity,
+    layers: &Query<LayerMeshItems>,
+    points: &Query<&MaterialPos>,
+    rest: &Query<&RestPos>,
+    faces: &Query<&FaceVerts>,
+) -> (Vec<Entity>, SurfaceSpace) {
+    let (_, verts, lfaces) = layers.get(layer).expect("a kernel's layer");
+    let vertices = verts.entities().to_vec();
+    let slot: HashMap<Entity, u32> = vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
+    let uv: Vec<DVec2> = vertices.iter().map(|&v| points.get(v).map_or(DVec2::ZERO, |p| p.0)).collect();
+    let x: Vec<glam::DVec3> = vertices.iter().map(|&v| rest.get(v).map_or(glam::DVec3::ZERO, |p| p.0)).collect();
+    let tris: Vec<[u32; 3]> = lfaces
+        .map(|f| f.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|fv| fv.0.map(|e| slot[&e])).collect())
+        .unwrap_or_default();
+    let space = SurfaceSpace::new(&x, &uv, &tris);
+    (vertices, space)
 }
 
 fn layer_space(
@@ -66,15 +104,21 @@ pub fn adjust_kernels(
         if !samples.is_changed() {
             continue;
         }
-        let side = |w: &LayerWeights| {
-            let pts: Vec<DVec2> = w.iter().map(|(v, _)| points.get(*v).map_or(DVec2::ZERO, |p| p.0)).collect();
+        let side = |w: &LayerWeights, chart: &[DVec2]| {
             let mut s = Sample { vertices: (0..w.len() as u32).collect(), weights: w.iter().map(|x| x.1).collect() };
-            let outcome = kernel.adjust.then(|| adjust(&pts, &mut s, kernel.shape.target));
+            let outcome = kernel.adjust.then(|| match kernel.distance {
+                KernelDistance::Planar => {
+                    let pts: Vec<DVec2> = w.iter().map(|(v, _)| points.get(*v).map_or(DVec2::ZERO, |p| p.0)).collect();
+                    adjust(&pts, &mut s, kernel.shape.target)
+                }
+                // In the tangent chart, centred on the kernel (or its cut centroid's offset).
+                KernelDistance::Geodesic => adjust(chart, &mut s, kernel.shape.target - kernel.shape.centre),
+            });
             let out: LayerWeights = w.iter().zip(&s.weights).map(|((v, _), &x)| (*v, x)).collect();
             (out, outcome)
         };
-        let (upper, a) = side(&samples.upper);
-        let (lower, b) = side(&samples.lower);
+        let (upper, a) = side(&samples.upper, &samples.chart[0]);
+        let (lower, b) = side(&samples.lower, &samples.chart[1]);
         *weights = KernelWeights { upper, lower, adjusted: [a, b] };
     }
 }

@@ -49,14 +49,25 @@ pub const FILM_EXPONENTS: (f64, f64) = (1.0 / 3.0, 1.0);
 /// boundary and makes the wrinkle wavelength depend on the patch width). Returns the centres'
 /// vertex indices in the order chosen.
 pub fn cluster_centres(points: &[DVec2], edges: &[[u32; 2]], wavelength: &[f64], seed: u64) -> Vec<u32> {
-    let n = points.len();
+    cluster_by_length(edges, wavelength, seed, |a, b| (points[a] - points[b]).length())
+}
+
+/// `cluster_centres` with edge lengths from `length(a, b)` (material space, or a rest surface:
+/// `geodesic`), one vertex per entry of `wavelength`.
+pub fn cluster_by_length(
+    edges: &[[u32; 2]],
+    wavelength: &[f64],
+    seed: u64,
+    length: impl Fn(usize, usize) -> f64,
+) -> Vec<u32> {
+    let n = wavelength.len();
     if n == 0 {
         return Vec::new();
     }
     let mut adjacency: Vec<Vec<(u32, f64)>> = vec![Vec::new(); n];
     for &[a, b] in edges {
         let (a, b) = (a as usize, b as usize);
-        let cost = (points[a] - points[b]).length() / (0.5 * (wavelength[a] + wavelength[b]));
+        let cost = length(a, b) / (0.5 * (wavelength[a] + wavelength[b]));
         adjacency[a].push((b as u32, cost));
         adjacency[b].push((a as u32, cost));
     }
@@ -235,6 +246,17 @@ pub fn moments(points: &[DVec2], sample: &Sample) -> (f64, DVec2) {
     (sum, centroid / sum)
 }
 
+/// How a coupling's kernels measure distances.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum KernelDistance {
+    /// In material space (LK14 4.1-4.2): supports and weights follow the UVs.
+    #[default]
+    Planar,
+    /// On each layer's rest surface (LK14 6.2, `coupling::geodesic`): independent of how the UVs
+    /// are distorted.
+    Geodesic,
+}
+
 /// A continuous constraint kernel in material space (LK14 4.1-4.2): its centre, support radius
 /// r = lambda / 2 (sigma = r / 2), and the centroid the adjusted weights must reproduce.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -244,7 +266,8 @@ pub struct KernelShape {
     /// The centre itself, unless the patch boundary cuts the support: then the centroid of the
     /// truncated Gaussian over the part inside the patch (measured on the clustering mesh), so
     /// the weights of a cut kernel need not turn strongly negative to reach a centre at the
-    /// edge, and still mean the same point on every discretization.
+    /// edge, and still mean the same point on every discretization. For geodesic kernels,
+    /// target - centre is that centroid's offset in the kernel's tangent chart.
     pub target: DVec2,
 }
 

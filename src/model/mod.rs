@@ -379,6 +379,7 @@ pub struct Kernel {
     pub shape: crate::coupling::kernels::KernelShape,
     /// Whether ConstraintAdjust centres the weights (LK14 4.2.1).
     pub adjust: bool,
+    pub distance: crate::coupling::kernels::KernelDistance,
 }
 
 /// Kernel -> Patch.
@@ -405,6 +406,9 @@ pub type LayerWeights = Vec<(Entity, f64)>;
 pub struct KernelSamples {
     pub upper: LayerWeights,
     pub lower: LayerWeights,
+    /// Geodesic kernels: each support vertex's position in the kernel's tangent chart (upper,
+    /// lower), where ConstraintAdjust centres the weights; empty for planar kernels.
+    pub chart: [Vec<glam::DVec2>; 2],
 }
 
 /// The weights the solver uses: the samples after ConstraintAdjust (LK14 eq. 4.4-4.8).

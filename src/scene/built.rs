@@ -37,6 +37,7 @@ pub struct BuiltCoupling {
     pub lower: usize,
     pub kernels: Vec<crate::coupling::kernels::KernelShape>,
     pub adjust: bool,
+    pub distance: crate::coupling::kernels::KernelDistance,
 }
 
 #[derive(Clone, Debug)]

@@ -105,14 +105,22 @@ impl Builder {
                 ));
             }
         }
+        let layout = kernels::KERNEL_SCALE;
+        if c.distance == kernels::KernelDistance::Geodesic {
+            // Clustered on the upper layer's own rest surface (`coupling::geodesic`).
+            let m = upper_mesh;
+            let wavelength: Vec<f64> = m.uv.iter().map(|u| layout * local(*u)).collect();
+            let space = crate::coupling::geodesic::SurfaceSpace::new(&m.rest, &m.uv, &m.faces);
+            let kernels = space.build_kernels(&m.uv, &wavelength, c.seed);
+            return Ok(BuiltCoupling { upper: ui, lower: li, kernels, adjust: c.adjust, distance: c.distance });
+        }
         let cell = DVec2::new(lambda_min / 10.0, lambda_min / 10.0 * 0.75f64.sqrt());
         let cells = ((hi - lo) / cell).ceil().max(DVec2::ONE);
         let fine =
             crate::mesh::grid(hi - lo, (cells.x as u32, cells.y as u32), crate::mesh::GridPattern::Equilateral, 0.0);
         let points: Vec<DVec2> = fine.uv.iter().map(|u| *u + lo).collect();
-        let layout = kernels::KERNEL_SCALE;
         let wavelength: Vec<f64> = points.iter().map(|p| layout * local(*p)).collect();
         let kernels = kernels::build_kernels(&points, &fine.faces, &wavelength, c.seed);
-        Ok(BuiltCoupling { upper: ui, lower: li, kernels, adjust: c.adjust })
+        Ok(BuiltCoupling { upper: ui, lower: li, kernels, adjust: c.adjust, distance: c.distance })
     }
 }

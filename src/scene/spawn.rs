@@ -63,7 +63,8 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
             .kernels
             .iter()
             .map(|&shape| {
-                let kernel = Kernel { upper: layers[c.upper], lower: layers[c.lower], shape, adjust: c.adjust };
+                let (upper, lower) = (layers[c.upper], layers[c.lower]);
+                let kernel = Kernel { upper, lower, shape, adjust: c.adjust, distance: c.distance };
                 (kernel, KernelOf(patch), KernelSamples::default(), KernelWeights::default())
             })
             .collect();

@@ -60,6 +60,10 @@ pub struct CouplingSpec {
     /// to measure what the adjustment does.
     #[serde(default = "default_true")]
     pub adjust: bool,
+    /// `Planar` (default): kernels measured in material space (LK14 4.1); `Geodesic`: on each
+    /// layer's rest surface (LK14 6.2), for curved layers whose UVs are distorted.
+    #[serde(default)]
+    pub distance: crate::coupling::kernels::KernelDistance,
 }
 
 /// Where a coupling's critical wavelength comes from.
