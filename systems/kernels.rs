@@ -45,9 +45,8 @@ pub fn resample_kernels(
             }
             KernelDistance::Geodesic => {
                 let mut on = |layer: Entity| -> (LayerWeights, Vec<DVec2>) {
-                    let (vertices, space) = surfaces
-                        .entry(layer)
-                        .or_insert_with(|| surface_space(layer, &layers, &points, &rest, &faces));
+                    let (vertices, space) =
+                        surfaces.entry(layer).or_insert_with(|| surface_space(layer, &layers, &points, &rest, &faces));
                     let s = space.sample(&space.locator(), centre, radius);
                     let weights = s.sample.vertices.iter().zip(&s.sample.weights);
                     (weights.map(|(&v, &w)| (vertices[v as usize], w)).collect(), s.chart)

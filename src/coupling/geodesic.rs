@@ -17,7 +17,7 @@ use std::collections::{BinaryHeap, HashMap};
 
 use glam::{DVec2, DVec3};
 
-use super::kernels::{Sample, KernelShape};
+use super::kernels::{KernelShape, Sample};
 use crate::mesh::locate::XyLocator;
 
 /// One layer's rest surface, indexed for kernel sampling.
@@ -235,8 +235,7 @@ mod tests {
             // The adjusted weights reproduce the centre along the surface: exactly in the plane of
             // the face holding it; here measured against the smooth cylinder's tangent plane,
             // which the face's tilts from by about an edge over the radius.
-            let point: DVec3 =
-                s.sample.vertices.iter().zip(&sample.weights).map(|(&v, &w)| rest[v as usize] * w).sum();
+            let point: DVec3 = s.sample.vertices.iter().zip(&sample.weights).map(|(&v, &w)| rest[v as usize] * w).sum();
             let tangential = {
                 let d = point - c3;
                 let n = c3 - DVec3::new(c3.x, 0.0, 0.0);
@@ -251,6 +250,9 @@ mod tests {
         // A path 0 - 1 - 2 - 3 of unit edges.
         let adjacency = vec![vec![(1, 1.0)], vec![(0, 1.0), (2, 1.0)], vec![(1, 1.0), (3, 1.0)], vec![(2, 1.0)]];
         assert_eq!(bounded_distances(&adjacency, &[(0, 0.5)], 2.0), vec![(0, 0.5), (1, 1.5)]);
-        assert_eq!(bounded_distances(&adjacency, &[(0, 0.2), (3, 0.1)], 1.5), vec![(0, 0.2), (1, 1.2), (2, 1.1), (3, 0.1)]);
+        assert_eq!(
+            bounded_distances(&adjacency, &[(0, 0.2), (3, 0.1)], 1.5),
+            vec![(0, 0.2), (1, 1.2), (2, 1.1), (3, 0.1)]
+        );
     }
 }
