@@ -121,6 +121,9 @@ fn bad_meshes_are_refused() {
     mentions(&obj_scene("duplicate", &format!("{QUAD}f 1 2 3\nf 1 3 4\nf 3 1 2\n")), &["same three vertices"]);
     mentions(&obj_scene("nonmanifold", &format!("{QUAD}v 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 3 5\n")), &["non-manifold"]);
     mentions(&obj_scene("unreferenced", &format!("{QUAD}v 5 5 5\nf 1 2 3\nf 1 3 4\n")), &["vertex 4", "not used"]);
+    // Issue 24: a curved shell without texture coordinates (a flat one falls back to x, y).
+    let folded = "v 0 0 0\nv 1 0 0\nv 1 1 0.5\nv 0 1 0.5\nf 1 2 3\nf 1 3 4\n";
+    mentions(&obj_scene("no_uvs", folded), &["layers[0] (\"skin\").mesh", "curved shell needs texture coordinates", "vt"]);
     // A valid OBJ loads.
     let d = dir();
     std::fs::write(d.join("ok.obj"), format!("{QUAD}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"))
@@ -314,7 +317,8 @@ fn quadratic_bending_needs_a_flat_rest() {
     mentions(&err(&periodic), &["drivers[0].layers", "\"film\"", "periodic seam"]);
     // A rest mesh out of its plane (a folded quad, from an OBJ).
     let d = dir();
-    std::fs::write(d.join("folded.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0.5\nv 0 1 0\nf 1 2 3\nf 1 3 4\n").unwrap();
+    let uvs = "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+    std::fs::write(d.join("folded.obj"), format!("v 0 0 0\nv 1 0 0\nv 1 1 0.5\nv 0 1 0\n{uvs}")).unwrap();
     let text = quadratic
         .replace(
             "Grid(size: (4.0, 2.0), cells: (4, 2)),\n                      material",

@@ -56,6 +56,11 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, ObjError> {
     Ok(m)
 }
 
+/// Whether the file states texture coordinates (`vt` lines).
+pub fn has_texture_coordinates(path: &Path) -> std::io::Result<bool> {
+    Ok(std::fs::read_to_string(path)?.lines().any(|l| l.split_whitespace().next() == Some("vt")))
+}
+
 /// tobj drops vertices no face uses, reads NaN and infinity as numbers and reports malformed
 /// faces without a line; a mesh with any of these (or with no face) is refused, with the line.
 fn scan(path: &Path) -> Result<(), ObjError> {

@@ -95,6 +95,20 @@ impl Builder {
                 }
                 let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
+                // A shell's material space (kernels, property and wrinkle maps) falls back to the
+                // rest xy without `vt`: right for a flat sheet, a distortion of a curved one.
+                let io = |e: std::io::Error| SceneError::at_field(&full, &field, e.to_string());
+                let (lo, hi) =
+                    m.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+                let curved = hi.z - lo.z > 1e-9 * (hi - lo).length();
+                if l.kind == LayerKind::Shell && curved && !mesh::obj::has_texture_coordinates(&full).map_err(io)? {
+                    return Err(SceneError::at_field(
+                        &full,
+                        &field,
+                        "a curved shell needs texture coordinates (`vt`): they are its material space; \
+                         without them it would be the rest x and y, which distort a curved surface",
+                    ));
+                }
                 LayerMesh::Surface(m)
             }
             MeshSpec::TetOn { layer, depth, elements, grading } => {
