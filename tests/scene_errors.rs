@@ -123,7 +123,10 @@ fn bad_meshes_are_refused() {
     mentions(&obj_scene("unreferenced", &format!("{QUAD}v 5 5 5\nf 1 2 3\nf 1 3 4\n")), &["vertex 4", "not used"]);
     // Issue 24: a curved shell without texture coordinates (a flat one falls back to x, y).
     let folded = "v 0 0 0\nv 1 0 0\nv 1 1 0.5\nv 0 1 0.5\nf 1 2 3\nf 1 3 4\n";
-    mentions(&obj_scene("no_uvs", folded), &["layers[0] (\"skin\").mesh", "curved shell needs texture coordinates", "vt"]);
+    mentions(
+        &obj_scene("no_uvs", folded),
+        &["layers[0] (\"skin\").mesh", "curved shell needs texture coordinates", "vt"],
+    );
     // A valid OBJ loads.
     let d = dir();
     std::fs::write(d.join("ok.obj"), format!("{QUAD}vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"))
@@ -339,4 +342,22 @@ fn a_volume_element_belongs_to_a_volume_layer() {
     let e = err(&GOOD.replace("poisson: 0.3, thickness: 0.1)", "poisson: 0.3, thickness: 0.1, volume_element: Hex)"));
     assert!(e.position.is_some(), "{e}");
     mentions(&e, &["Hex"]);
+}
+
+#[test]
+fn a_joint_needs_a_width_and_two_axes() {
+    let with = |joint: &str| GOOD.replace("drivers: [", &format!("drivers: [{joint},"));
+    load_str(
+        &with(r#"Joint(layers: ["base"], pivot: (2.0, 1.0, 0.0), width: 1.0, keyframes: [(0, 0.0), (2, 30.0)])"#),
+        Path::new("scene.ron"),
+    )
+    .unwrap();
+    let e = err(&with(r#"Joint(layers: ["base"], pivot: (2.0, 1.0, 0.0), width: 0.0, keyframes: [(0, 0.0)])"#));
+    mentions(&e, &["drivers[0].width", "> 0"]);
+    let e = err(&with(
+        r#"Joint(layers: ["base"], pivot: (2.0, 1.0, 0.0), axis: X, along: X, width: 1.0, keyframes: [(0, 0.0)])"#,
+    ));
+    mentions(&e, &["drivers[0].along", "hinge axis"]);
+    let e = err(&with(r#"Joint(layers: ["bone"], pivot: (2.0, 1.0, 0.0), width: 1.0, keyframes: [(0, 0.0)])"#));
+    mentions(&e, &["drivers[0].layers", "no layer named \"bone\""]);
 }

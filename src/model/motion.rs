@@ -45,12 +45,38 @@ pub enum MotionKind {
     /// Cylinder of curvature kappa (1/m) about an axis through the centre, bending the
     /// in-plane direction orthogonal to it towards +z.
     Bend { axis: usize },
+    /// A procedural joint bend by the keyframed angle (radians).
+    Joint(Joint),
     /// Blend shapes (LK14 5.3): x_i = X_i + sum_t w_t(frame) d_t,i, one displacement field per
     /// target over the layer's vertices, in mesh order.
     Blend(BlendShape),
     /// Per frame from `start` (the last frame holds after): displacements from rest (KCK18
     /// bodies: articulated poses, OBJ sequences).
     Sequence { frames: Vec<Vec<DVec3>>, start: u32 },
+}
+
+/// A hinge joint (issue 24): points turn about the line through `pivot` along `axis` (unit) by
+/// the angle times a smoothstep of their distance along `along` (unit) from the pivot: none at
+/// -width / 2, all at +width / 2 and beyond (the bone past the joint turns rigidly, the skin over
+/// the joint blends, as two-bone linear blend skinning with a smooth weight).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Joint {
+    pub pivot: DVec3,
+    pub axis: DVec3,
+    pub along: DVec3,
+    pub width: f64,
+}
+
+impl Joint {
+    /// The point `p` with the joint turned by `angle` (radians).
+    pub fn bend(&self, p: DVec3, angle: f64) -> DVec3 {
+        let t = (((p - self.pivot).dot(self.along) / self.width) + 0.5).clamp(0.0, 1.0);
+        let a = angle * t * t * (3.0 - 2.0 * t);
+        if a == 0.0 {
+            return p;
+        }
+        self.pivot + glam::DQuat::from_axis_angle(self.axis, a) * (p - self.pivot)
+    }
 }
 
 /// A blend shape's targets: displacements from the base mesh and keyframed weights.
@@ -89,6 +115,7 @@ impl Motion {
                 let bent = if axis == 1 { 0 } else { 1 };
                 crate::physics::prestrain::wrap_on_cylinder(p, centre, v, bent)
             }
+            MotionKind::Joint(j) => j.bend(p, v),
             MotionKind::Sequence { frames, start } => {
                 let last = frames.len().saturating_sub(1);
                 let i = ((frame - *start as f64).max(0.0) as usize).min(last);
@@ -126,6 +153,25 @@ pub struct PatchCaptures(pub Vec<Capture>);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_joint_turns_the_far_side_rigidly_and_blends_across_its_width() {
+        let j = Joint { pivot: DVec3::new(1.0, 0.0, -0.5), axis: DVec3::Y, along: DVec3::X, width: 0.4 };
+        let angle = std::f64::consts::FRAC_PI_2;
+        let near = DVec3::new(0.7, 0.3, 0.0);
+        assert_eq!(j.bend(near, angle), near, "behind the blend zone nothing moves");
+        // Beyond it: a rigid rotation about the hinge line (distances to the pivot line kept).
+        let (a, b) = (DVec3::new(1.5, 0.2, 0.0), DVec3::new(2.0, -0.1, 0.1));
+        let (ta, tb) = (j.bend(a, angle), j.bend(b, angle));
+        assert!(((ta - tb).length() - (a - b).length()).abs() < 1e-12);
+        // (0.5, 0.2, 0.5) from the pivot turns a quarter about +y to (0.5, 0.2, -0.5).
+        assert!((ta - DVec3::new(1.5, 0.2, -1.0)).length() < 1e-12, "{ta}");
+        // In the zone the angle grows smoothly: the pivot's own section turns by half.
+        let mid = DVec3::new(1.0, 0.0, 0.0);
+        let turned = j.bend(mid, angle) - j.pivot;
+        let half = (turned.x.atan2(turned.z) - (mid - j.pivot).x.atan2((mid - j.pivot).z)).abs();
+        assert!((half - angle / 2.0).abs() < 1e-12, "{half}");
+    }
 
     #[test]
     fn keyframes_interpolate_linearly_and_smoothly() {

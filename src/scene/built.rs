@@ -127,6 +127,12 @@ pub enum BuiltDriver {
         axis: usize,
         keyframes: Vec<(u32, f64)>,
     },
+    /// Keyframes in radians; pivot in metres (the patch offset applied).
+    Joint {
+        layers: Vec<usize>,
+        joint: crate::model::Joint,
+        keyframes: Vec<(u32, f64)>,
+    },
     /// Springs (vertex of `layer`, vertex of `to`, stiffness N/m), and their stiffness per unit
     /// area of `layer` (N/m^3: for the springs made again after a remesh).
     Attach {

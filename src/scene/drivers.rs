@@ -81,6 +81,33 @@ impl Builder {
                 let keyframes = keyframes.iter().map(|&(f, k)| (f, k / len)).collect();
                 BuiltDriver::Bend { layers, axis: axis.index(), keyframes }
             }
+            DriverSpec::Joint { layers: ls, pivot, axis, along, width, keyframes } => {
+                keyframes_ok(keyframes, "angle")?;
+                if axis == along {
+                    return Err(self.err(format!("{dat}.along"), "the bone axis must differ from the hinge axis"));
+                }
+                if !(*width > 0.0 && width.is_finite()) {
+                    return Err(self.err(format!("{dat}.width"), format!("must be > 0 (got {width})")));
+                }
+                let p = DVec3::new(pivot.0, pivot.1, pivot.2);
+                if !p.is_finite() {
+                    return Err(self.err(format!("{dat}.pivot"), "must be finite"));
+                }
+                let layers = ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;
+                let unit = |a: &Axis| {
+                    let mut v = DVec3::ZERO;
+                    v[a.index()] = 1.0;
+                    v
+                };
+                let joint = crate::model::Joint {
+                    pivot: p * len + offset,
+                    axis: unit(axis),
+                    along: unit(along),
+                    width: width * len,
+                };
+                let keyframes = keyframes.iter().map(|&(f, a)| (f, a.to_radians())).collect();
+                BuiltDriver::Joint { layers, joint, keyframes }
+            }
             DriverSpec::PlaneStrain { layers: ls, axis } => {
                 let layers_i: Vec<usize> =
                     ls.iter().map(|n| find(format!("{dat}.layers"), n)).collect::<Result<_, _>>()?;

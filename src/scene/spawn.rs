@@ -105,6 +105,11 @@ fn spawn_drivers(
                 kind: MotionKind::Compress { axis: *axis, predict: *predict && !p.solver.mode.is_dynamic() },
                 keyframes: Keyframes(keyframes.clone()),
             }),
+            BuiltDriver::Joint { layers: ls, joint, keyframes } => motion.motions.push(Motion {
+                layers: ls.iter().map(|&i| layers[i]).collect(),
+                kind: MotionKind::Joint(*joint),
+                keyframes: Keyframes(keyframes.clone()),
+            }),
             BuiltDriver::Bend { layers: ls, axis, keyframes } => motion.motions.push(Motion {
                 layers: ls.iter().map(|&i| layers[i]).collect(),
                 kind: MotionKind::Bend { axis: *axis },

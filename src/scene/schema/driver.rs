@@ -75,6 +75,20 @@ pub enum DriverSpec {
         axis: Axis,
         keyframes: Vec<(u32, f64)>,
     },
+    /// A procedural joint (issue 24): the listed layers turn about the hinge line through `pivot`
+    /// (length units, the patch's frame) along `axis` by `keyframes` (frame, degrees), the part
+    /// beyond the joint along `along` rigidly, a zone `width` long (length units) centred on the
+    /// pivot blending smoothly from none to all: a finger bending at its knuckle.
+    Joint {
+        layers: Vec<String>,
+        pivot: (f64, f64, f64),
+        #[serde(default = "axis_y")]
+        axis: Axis,
+        #[serde(default)]
+        along: Axis,
+        width: f64,
+        keyframes: Vec<(u32, f64)>,
+    },
     /// Zero-length springs from every vertex of `layer` to the vertex of `to` at the same
     /// material position; `stiffness` per unit area (stress / length units).
     Attach { layer: String, to: String, stiffness: f64 },
