@@ -12,18 +12,27 @@ use super::SurfaceMesh;
 /// An open tube along x, centred on the origin: `around` vertices per ring, `along` cells.
 /// Material coordinates (x, arc length from the top).
 pub fn tube(radius: f64, length: f64, around: u32, along: u32) -> SurfaceMesh {
+    tube_arc(radius, length, around, along, TAU)
+}
+
+/// A tube (`arc` = 2 pi, closed) or an open part of one `arc` radians wide, centred on +z, its
+/// material coordinates (x, radius x angle) continuous over it.
+pub fn tube_arc(radius: f64, length: f64, around: u32, along: u32, arc: f64) -> SurfaceMesh {
+    let closed = arc >= TAU;
+    let columns = if closed { around } else { around + 1 };
+    let start = if closed { 0.0 } else { -0.5 * arc };
     let mut m = SurfaceMesh::default();
     for i in 0..=along {
         let x = -0.5 * length + length * i as f64 / along as f64;
-        for j in 0..around {
-            let theta = TAU * j as f64 / around as f64;
+        for j in 0..columns {
+            let theta = start + arc.min(TAU) * j as f64 / around as f64;
             m.rest.push(DVec3::new(x, radius * theta.sin(), radius * theta.cos()));
             m.uv.push(DVec2::new(x, radius * theta));
         }
     }
     for i in 0..along {
         for j in 0..around {
-            let v = |di: u32, dj: u32| (i + di) * around + (j + dj) % around;
+            let v = |di: u32, dj: u32| (i + di) * columns + (j + dj) % columns;
             // Alternate the diagonals so the tube has no handedness.
             if (i + j) % 2 == 0 {
                 m.faces.push([v(0, 0), v(1, 0), v(1, 1)]);

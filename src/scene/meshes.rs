@@ -143,7 +143,7 @@ impl Builder {
                 m.uv.iter_mut().for_each(|u| *u += base.origin.truncate() - offset.truncate());
                 LayerMesh::Surface(m)
             }
-            MeshSpec::Tube { radius, length, cells } => {
+            MeshSpec::Tube { radius, length, cells, arc } => {
                 self.surface_only(&field, l.kind)?;
                 positive(*radius, "radius")?;
                 positive(*length, "length")?;
@@ -151,7 +151,15 @@ impl Builder {
                     return Err(self.err(format!("{field}.cells"), "needs at least 3 cells around and 1 along"));
                 }
                 self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64, cells.1 as u64 + 1, 1], l.kind)?;
-                LayerMesh::Surface(mesh::bodies::tube(radius * len, length * len, cells.0, cells.1))
+                let arc = match arc {
+                    None => 360.0,
+                    Some(a) if *a > 0.0 && *a <= 360.0 => *a,
+                    Some(a) => {
+                        return Err(self.err(format!("{field}.arc"), format!("must be in (0, 360] degrees (got {a})")))
+                    }
+                };
+                let (r, l) = (radius * len, length * len);
+                LayerMesh::Surface(mesh::bodies::tube_arc(r, l, cells.0, cells.1, arc.to_radians()))
             }
             MeshSpec::Creature { radius, subdivisions } => {
                 self.surface_only(&field, l.kind)?;

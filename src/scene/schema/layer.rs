@@ -206,7 +206,14 @@ pub enum MeshSpec {
     /// are that layer's top vertices (H15: the stratum corneum over the dermis).
     SurfaceOf { layer: String },
     /// An open tube along x centred on the origin: `cells` = (around, along).
-    Tube { radius: f64, length: f64, cells: (u32, u32) },
+    /// `arc` (degrees, default 360: closed): an open part of the tube that wide, centred on +z.
+    Tube {
+        radius: f64,
+        length: f64,
+        cells: (u32, u32),
+        #[serde(default)]
+        arc: Option<f64>,
+    },
     /// A closed lumpy creature (torso, four legs, head, tail) of 20 x 4^subdivisions triangles.
     Creature { radius: f64, subdivisions: u32 },
     /// An earlier surface layer's rest mesh moved `distance` along its vertex normals (a skin
