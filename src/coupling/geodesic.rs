@@ -12,12 +12,11 @@
 //!   Centred there, the weights reproduce the centre exactly along the surface (a log map would
 //!   differ by O(r^3 / R^2) for a support of radius r on a curvature radius R).
 
-use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
 
 use glam::{DVec2, DVec3};
 
-use super::kernels::{KernelShape, Sample};
+use super::kernels::{Item, KernelShape, Sample};
 use crate::mesh::locate::XyLocator;
 
 /// One layer's rest surface, indexed for kernel sampling.
@@ -150,19 +149,6 @@ pub fn chart_centroid(s: &SurfaceSample) -> DVec2 {
 /// Shortest edge-path distances below `limit` from several sources with start distances, in
 /// increasing vertex order.
 pub fn bounded_distances(adjacency: &[Vec<(u32, f64)>], sources: &[(u32, f64)], limit: f64) -> Vec<(u32, f64)> {
-    #[derive(PartialEq)]
-    struct Item(f64, u32);
-    impl Eq for Item {}
-    impl PartialOrd for Item {
-        fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-            Some(self.cmp(o))
-        }
-    }
-    impl Ord for Item {
-        fn cmp(&self, o: &Self) -> Ordering {
-            o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
-        }
-    }
     let mut best: HashMap<u32, f64> = HashMap::new();
     let mut heap = BinaryHeap::new();
     for &(v, d) in sources {

@@ -93,22 +93,27 @@ pub fn cluster_by_length(
     }
 }
 
+/// A Dijkstra heap entry (distance, vertex): the nearest first, ties to the lowest vertex.
+#[derive(PartialEq)]
+pub(crate) struct Item(pub f64, pub u32);
+
+impl Eq for Item {}
+
+impl PartialOrd for Item {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl Ord for Item {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+
 /// Lowers `distance` with the shortest paths from `source` (incremental multi-source Dijkstra:
 /// only vertices that get closer are visited).
 fn relax_from(source: u32, adjacency: &[Vec<(u32, f64)>], distance: &mut [f64]) {
-    #[derive(PartialEq)]
-    struct Item(f64, u32);
-    impl Eq for Item {}
-    impl PartialOrd for Item {
-        fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-            Some(self.cmp(o))
-        }
-    }
-    impl Ord for Item {
-        fn cmp(&self, o: &Self) -> Ordering {
-            o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
-        }
-    }
     distance[source as usize] = 0.0;
     let mut heap = BinaryHeap::from([Item(0.0, source)]);
     while let Some(Item(d, v)) = heap.pop() {
