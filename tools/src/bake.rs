@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use image::RgbImage;
 use skinsim::mesh::shading::vertex_normals;
 use skinsim::mesh::wrinkle_map::{blend, normal_map};
-use skinsim::model::{Keyframes, LayerKind};
+use skinsim::model::{Interpolation, Keyframes, LayerKind};
 use skinsim::scene::built::BuiltDriver;
 use skinsim::scene::BuiltScene;
 use skinsim_systems::Simulation;
@@ -17,6 +17,8 @@ use skinsim_systems::Simulation;
 pub struct BakeRequest {
     pub frames: Vec<u32>,
     pub weights: Vec<f64>,
+    /// Joint angles in degrees.
+    pub angles: Vec<f64>,
     pub size: u32,
     /// None: the top shell layer of each patch.
     pub layer: Option<String>,
@@ -33,10 +35,14 @@ pub struct Baked {
 }
 
 /// The frames to bake: the requested ones, plus per requested weight the first frame where the
-/// first patch's first blend-shape target is closest to it.
+/// first patch's first blend-shape target is closest to it, and per requested angle the first
+/// frame where the first Joint's angle is closest to it.
 pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, String> {
     if let Some(w) = req.weights.iter().find(|w| !w.is_finite()) {
         return Err(format!("--weights must be finite numbers (got {w})"));
+    }
+    if let Some(a) = req.angles.iter().find(|a| !a.is_finite()) {
+        return Err(format!("--angles must be finite numbers of degrees (got {a})"));
     }
     if let Some(b) = req.blends.iter().find(|b| !(0.0..=1.0).contains(*b)) {
         return Err(format!("--blend weights must be in [0, 1] (got {b})"));
@@ -61,13 +67,21 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
             .ok_or("--weights needs a scene with a BlendShape driver")?;
         let keys = Keyframes(blend.0);
         for &w in &req.weights {
-            let best = (0..=scene.scene.frames)
-                .min_by(|&a, &b| {
-                    let d = |f: u32| (keys.at(f as f64, blend.1) - w).abs();
-                    d(a).total_cmp(&d(b))
-                })
-                .expect("at least frame 0");
-            frames.push(best);
+            frames.push(closest_frame(scene.scene.frames, w, |f| keys.at(f, blend.1)));
+        }
+    }
+    if !req.angles.is_empty() {
+        let keys = scene
+            .patches
+            .iter()
+            .flat_map(|p| &p.drivers)
+            .find_map(|d| match d {
+                BuiltDriver::Joint { keyframes, .. } => Some(Keyframes(keyframes.clone())),
+                _ => None,
+            })
+            .ok_or("--angles needs a scene with a Joint driver")?;
+        for &a in &req.angles {
+            frames.push(closest_frame(scene.scene.frames, a.to_radians(), |f| keys.at(f, Interpolation::Linear)));
         }
     }
     if let Some(&f) = frames.iter().find(|&&f| f > scene.scene.frames) {
@@ -76,9 +90,16 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
     frames.sort_unstable();
     frames.dedup();
     if frames.is_empty() {
-        return Err("nothing to bake: give --frames or --weights".into());
+        return Err("nothing to bake: give --frames, --weights or --angles".into());
     }
     Ok(frames)
+}
+
+/// The first frame in 0..=last where `value` comes closest to `target`.
+fn closest_frame(last: u32, target: f64, value: impl Fn(f64) -> f64) -> u32 {
+    (0..=last)
+        .min_by(|&a, &b| (value(a as f64) - target).abs().total_cmp(&(value(b as f64) - target).abs()))
+        .expect("at least frame 0")
 }
 
 /// Runs the scene up to the last requested frame and writes the maps under `out`.

@@ -50,6 +50,10 @@ enum Command {
         /// Blend-shape weights to bake: the frames where the first target's weight comes closest.
         #[arg(long, value_delimiter = ',')]
         weights: Vec<f64>,
+        /// Joint angles (degrees) to bake: the frames where the first Joint's angle comes
+        /// closest (LK14 5.4: the joint angle is the blend parameter).
+        #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+        angles: Vec<f64>,
         /// Map size in pixels (square).
         #[arg(long, default_value_t = 1024)]
         size: u32,
@@ -218,8 +222,8 @@ fn main() -> ExitCode {
             report(&out, quick, only, element, &cases)
         }
         Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
-        Command::Bake { scene, frames, weights, size, out, layer, blend } => {
-            bake(&scene, BakeRequest { frames, weights, size, layer, blends: blend }, out)
+        Command::Bake { scene, frames, weights, angles, size, out, layer, blend } => {
+            bake(&scene, BakeRequest { frames, weights, angles, size, layer, blends: blend }, out)
         }
     });
     match result {
