@@ -7,8 +7,8 @@
 //! three displacements per vertex and the mesh locks (VALIDATION.md case 8 at nu = 0.495: the
 //! wavelength 11 % short, the onset 36 % late). One dilatation per cell of six tetrahedra (eight
 //! vertices) leaves one constraint per vertex, as in the hexahedron with selectively reduced
-//! integration of its volumetric term; for models whose energy splits into an isochoric part and
-//! U(J) it is the F-bar patch method (de Souza Neto et al. 2005), F_bar = (J_c / J_e)^(1/3) F_e.
+//! integration of its volumetric term; for the lambda term it is the F-bar patch method (de
+//! Souza Neto et al. 2005): the term sees F_bar = (J_c / J_e)^(1/3) F_e, whose determinant is J_c.
 //!
 //! Each model's lambda term is written as lambda / 2 g(J)^2: g = ln J for Bazant-Hencky (H15 eq.
 //! 5.21: lambda / 8 ln^2 det C), g = J - 1 for Stable Neo-Hookean (its lambda term, alpha
