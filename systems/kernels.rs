@@ -27,10 +27,20 @@ pub fn resample_kernels(
     faces: Query<&FaceVerts>,
 ) {
     let mut spaces: HashMap<Entity, LayerSpace> = HashMap::new();
-    let mut surfaces: HashMap<Entity, (Vec<Entity>, SurfaceSpace)> = HashMap::new();
     let changed = |l: Entity| layers.get(l).is_ok_and(|(epoch, ..)| epoch.is_changed());
+    let stale = |k: &Ref<Kernel>| k.is_changed() || changed(k.upper) || changed(k.lower);
+    // The rest surfaces that stale geodesic kernels sample, each with one point locator.
+    let mut surfaces: HashMap<Entity, (Vec<Entity>, SurfaceSpace)> = HashMap::new();
+    for (kernel, _) in &kernels {
+        if kernel.distance == KernelDistance::Geodesic && stale(&kernel) {
+            for layer in [kernel.upper, kernel.lower] {
+                surfaces.entry(layer).or_insert_with(|| surface_space(layer, &layers, &points, &rest, &faces));
+            }
+        }
+    }
+    let locators: HashMap<Entity, _> = surfaces.iter().map(|(&l, (_, space))| (l, space.locator())).collect();
     for (kernel, mut samples) in &mut kernels {
-        if !(kernel.is_changed() || changed(kernel.upper) || changed(kernel.lower)) {
+        if !stale(&kernel) {
             continue;
         }
         let (centre, radius) = (kernel.shape.centre, kernel.shape.radius);
@@ -44,10 +54,9 @@ pub fn resample_kernels(
                 KernelSamples { upper: on(kernel.upper), lower: on(kernel.lower), chart: Default::default() }
             }
             KernelDistance::Geodesic => {
-                let mut on = |layer: Entity| -> (LayerWeights, Vec<DVec2>) {
-                    let (vertices, space) =
-                        surfaces.entry(layer).or_insert_with(|| surface_space(layer, &layers, &points, &rest, &faces));
-                    let s = space.sample(&space.locator(), centre, radius);
+                let on = |layer: Entity| -> (LayerWeights, Vec<DVec2>) {
+                    let (vertices, space) = &surfaces[&layer];
+                    let s = space.sample(&locators[&layer], centre, radius);
                     let weights = s.sample.vertices.iter().zip(&s.sample.weights);
                     (weights.map(|(&v, &w)| (vertices[v as usize], w)).collect(), s.chart)
                 };

@@ -125,8 +125,8 @@ pub fn eval(rest: &CellRest, x: &[DVec3; CELL_VERTS], filter: Filter) -> (f64, S
     let mut dj = SVector::<f64, N>::zeros();
     let mut j = 0.0;
     let exact = filter == Filter::Exact;
-    // d2 det(Ds) per tetrahedron, kept for the exact Hessian.
-    let mut curvature = SMatrix::<f64, N, N>::zeros();
+    // d2 det(Ds) summed over the tetrahedra: the exact Hessian only.
+    let mut curvature = exact.then(SMatrix::<f64, N, N>::zeros);
     for (e, t) in rest.tets.iter().enumerate() {
         let w = rest.weight[e] / rest.volume;
         let p = t.map(|i| x[i as usize]);
@@ -141,7 +141,7 @@ pub fn eval(rest: &CellRest, x: &[DVec3; CELL_VERTS], filter: Filter) -> (f64, S
             dj[r + 1] += w * gk.y;
             dj[r + 2] += w * gk.z;
         }
-        if exact {
+        if let Some(curvature) = curvature.as_mut() {
             // Blocks d2 det / dx_a dx_b (a, b = 1..3): H12 = -[e3], H13 = [e2], H23 = -[e1]
             // (skew cross-product matrices), symmetric overall; rows of x_0 minus the sums.
             let mut hb = [[Matrix3::zeros(); 3]; 3];
@@ -172,14 +172,11 @@ pub fn eval(rest: &CellRest, x: &[DVec3; CELL_VERTS], filter: Filter) -> (f64, S
     let energy = 0.5 * b * g * g;
     let grad = dj * (b * g * g1);
     let mut h = dj * dj.transpose() * (b * (g1 * g1 + g * g2));
-    match filter {
-        Filter::Exact => h += curvature * (b * g * g1),
-        // The Gauss-Newton part, with a negative coefficient (J > e) dropped.
-        Filter::Clamp | Filter::Abs => {
-            if g1 * g1 + g * g2 < 0.0 {
-                h.fill(0.0);
-            }
-        }
+    match curvature {
+        Some(c) => h += c * (b * g * g1),
+        // Projected: the Gauss-Newton part, with a negative coefficient (J > e) dropped.
+        None if g1 * g1 + g * g2 < 0.0 => h.fill(0.0),
+        None => {}
     }
     (energy, grad, h)
 }
