@@ -1,4 +1,5 @@
-//! Writeback: scatters each patch's packed positions and velocities back to its vertex entities.
+//! Writeback: scatters each patch's packed positions and velocities back to its own vertex
+//! entities.
 
 use bevy_ecs::prelude::*;
 use skinsim::model::*;
@@ -13,7 +14,8 @@ pub fn scatter_packed(
         return; // keep the last good state
     }
     for (packed, index) in &patches {
-        for (i, &e) in index.vertices.iter().enumerate() {
+        // (a shared body's vertices are the body's: its motion moves them)
+        for (i, &e) in index.vertices[..index.own].iter().enumerate() {
             if let Ok((mut p, mut v)) = vertices.get_mut(e) {
                 p.0 = packed.state.x[i];
                 v.0 = packed.state.v[i];

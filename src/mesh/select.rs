@@ -39,6 +39,24 @@ pub fn select(rest: &[DVec3], region: &Region) -> Vec<u32> {
         .collect()
 }
 
+/// The faces all of whose vertices `keep` selects, over the vertices they use (in their old
+/// order): a region of a surface as a mesh of its own.
+pub fn faces_within(m: &SurfaceMesh, keep: &[bool]) -> SurfaceMesh {
+    let faces: Vec<[u32; 3]> = m.faces.iter().filter(|f| f.iter().all(|&v| keep[v as usize])).copied().collect();
+    let mut new_index = vec![u32::MAX; m.rest.len()];
+    faces.iter().flatten().for_each(|&v| new_index[v as usize] = 0);
+    let mut out = SurfaceMesh::default();
+    for (i, slot) in new_index.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = out.rest.len() as u32;
+            out.rest.push(m.rest[i]);
+            out.uv.push(m.uv[i]);
+        }
+    }
+    out.faces = faces.iter().map(|f| f.map(|v| new_index[v as usize])).collect();
+    out
+}
+
 /// Vertices that differ only along `axis` form a group; each is tied to the group's first.
 pub fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
     let tol = 1e-9 * super::bounds::diagonal(rest).max(1e-300);

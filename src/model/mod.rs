@@ -64,6 +64,11 @@ impl PatchLayers {
     }
 }
 
+/// Patch -> the shared body layers its solve packs (held fixed) besides its own: those its
+/// kernels hold it to.
+#[derive(Component, Clone, Debug, Default)]
+pub struct PatchBodies(pub Vec<Entity>);
+
 /// Elastic material of a shell or volume layer, SI units.
 #[derive(Component, Clone, Copy, Debug)]
 pub struct Material {
@@ -100,6 +105,9 @@ pub struct PackedIndex {
     /// Packed vertex index -> entity, and entity -> packed vertex index.
     pub vertices: Vec<Entity>,
     pub index: std::collections::HashMap<Entity, u32>,
+    /// The first `own` packed vertices are the patch's; the rest are a shared body's (read, not
+    /// written back).
+    pub own: usize,
     /// Anchor entities in element order: the vertex anchors, then the face anchors.
     pub anchors: Vec<Entity>,
     /// Faces and tets of the patch's solved layers (for reports).
@@ -113,6 +121,7 @@ impl Default for PackedIndex {
             key: u64::MAX,
             vertices: Vec::new(),
             index: Default::default(),
+            own: 0,
             anchors: Vec::new(),
             faces: 0,
             tets: 0,

@@ -119,19 +119,91 @@ impl Builder {
             ));
         }
         self.check_name("name", &scene.name)?;
+        // Bodies and patches name output folders side by side: one name each.
         let mut names = HashMap::new();
+        let mut bodies = Vec::new();
+        for (bi, b) in scene.bodies.iter().enumerate() {
+            let field = format!("bodies[{bi}].name");
+            self.check_name(&field, &b.name)?;
+            if let Some(prev) = names.insert(b.name.clone(), format!("bodies[{bi}]")) {
+                return Err(self.err(field, format!("\"{}\" is also the name of {prev}", b.name)));
+            }
+            bodies.push(self.body(&scene, bi, b)?);
+        }
         let mut patches = Vec::new();
         for (pi, p) in scene.patches.iter().enumerate() {
             self.check_name(format!("patches[{pi}].name"), &p.name)?;
-            if let Some(prev) = names.insert(p.name.clone(), pi) {
+            if let Some(prev) = names.insert(p.name.clone(), format!("patches[{pi}]")) {
+                return Err(
+                    self.err(format!("patches[{pi}].name"), format!("\"{}\" is also the name of {prev}", p.name))
+                );
+            }
+            patches.push(self.patch(&scene, pi, p, &bodies)?);
+        }
+        Ok(BuiltScene { path: self.file.clone(), scene, bodies, patches })
+    }
+
+    /// A shared body: one kinematic layer named as the body, and the drivers that move it.
+    fn body(&self, scene: &Scene, bi: usize, b: &BodySpec) -> Result<BuiltPatch, SceneError> {
+        let at = format!("bodies[{bi}] (\"{}\")", b.name);
+        let (len, stress) = (scene.units.length.to_si(), scene.units.stress.to_si());
+        let offset = self.placement(&format!("{at}.offset"), b.offset, len)?;
+        let spec = LayerSpec {
+            name: b.name.clone(),
+            kind: crate::model::LayerKind::Kinematic,
+            mesh: b.mesh.clone(),
+            material: None,
+            bending: None,
+            prestrain: None,
+            randomize: None,
+            properties: None,
+            remesh: None,
+        };
+        let index = HashMap::from([(b.name.clone(), 0)]);
+        let layers = vec![self.layer(&at, &spec, len, stress, offset, &[], &index)?];
+        let cx = PatchContext { scene, layers: &layers, index: &index, len, stress, offset };
+        let mut drivers = Vec::new();
+        for (di, d) in b.drivers.iter().enumerate() {
+            let dat = format!("{at}.drivers[{di}]");
+            let built = self.driver(&dat, d, &cx)?;
+            if !built.is_motion() {
                 return Err(self.err(
-                    format!("patches[{pi}].name"),
-                    format!("\"{}\" is also the name of patches[{prev}]", p.name),
+                    dat,
+                    "a body takes motions only (Joint, Bend, Compress, BlendShape, Sequence): the rest belongs to \
+                     the patches on it",
                 ));
             }
-            patches.push(self.patch(&scene, pi, p)?);
+            drivers.push(built);
         }
-        Ok(BuiltScene { path: self.file.clone(), scene, patches })
+        let body = BuiltPatch {
+            name: b.name.clone(),
+            body: None,
+            solver: Default::default(),
+            perturbation: None,
+            layers,
+            drivers,
+            couplings: Vec::new(),
+            anchors: None,
+        };
+        if let Some((_, message)) = super::geometry::geometry_error(&body) {
+            return Err(self.err(format!("{at}.mesh"), message));
+        }
+        Ok(body)
+    }
+
+    /// A patch's or body's offset in metres, finite and within the coordinate bound.
+    fn placement(&self, field: &str, offset: (f64, f64, f64), len: f64) -> Result<DVec3, SceneError> {
+        let placed = DVec3::new(offset.0, offset.1, offset.2) * len;
+        // (checked here, not only on the final geometry: a non-finite offset would first make a
+        // driver's selection come out empty and be blamed on it)
+        if !(0.0..=super::geometry::MAX_COORDINATE).contains(&placed.abs().max_element()) {
+            let message = format!(
+                "must be finite and within +-{} m of the origin (got {offset:?})",
+                super::geometry::MAX_COORDINATE
+            );
+            return Err(self.err(field, message));
+        }
+        Ok(placed)
     }
 
     /// Names become output folders and file names: a safe character set, no path separator,
@@ -155,7 +227,7 @@ impl Builder {
         ))
     }
 
-    fn patch(&self, scene: &Scene, pi: usize, p: &PatchSpec) -> Result<BuiltPatch, SceneError> {
+    fn patch(&self, scene: &Scene, pi: usize, p: &PatchSpec, bodies: &[BuiltPatch]) -> Result<BuiltPatch, SceneError> {
         let at = format!("patches[{pi}] (\"{}\")", p.name);
         let len = scene.units.length.to_si();
         let stress = scene.units.stress.to_si();
@@ -186,24 +258,37 @@ impl Builder {
                 *cell *= len;
             }
         }
-        let offset = DVec3::new(p.offset.0, p.offset.1, p.offset.2) * len;
-        // (checked here, not only on the final geometry: a non-finite offset would first make a
-        // driver's selection come out empty and be blamed on it)
-        if !(0.0..=super::geometry::MAX_COORDINATE).contains(&offset.abs().max_element()) {
-            let message = format!(
-                "must be finite and within +-{} m of the origin (got {:?})",
-                super::geometry::MAX_COORDINATE,
-                p.offset
-            );
-            return Err(self.err(format!("{at}.offset"), message));
-        }
+        let offset = self.placement(&format!("{at}.offset"), p.offset, len)?;
         let mut layers: Vec<BuiltLayer> = Vec::new();
         let mut index = HashMap::new();
+        // The shared body, if any, is the patch's layer 0 (its layers are numbered from 1).
+        let body = match &p.body {
+            None => None,
+            Some(name) => {
+                let field = format!("{at}.body");
+                let Some(bi) = bodies.iter().position(|b| &b.name == name) else {
+                    let known: Vec<_> = bodies.iter().map(|b| format!("\"{}\"", b.name)).collect();
+                    let known = if known.is_empty() { "the scene declares no body".into() } else { known.join(", ") };
+                    return Err(self.err(field, format!("no body named \"{name}\" ({known})")));
+                };
+                if offset != DVec3::ZERO {
+                    return Err(self.err(format!("{at}.offset"), "a patch on a body sits where the body is: no offset"));
+                }
+                layers.push(bodies[bi].layers[0].clone());
+                index.insert(name.clone(), 0);
+                Some(bi)
+            }
+        };
+        let first = layers.len();
         for (li, l) in p.layers.iter().enumerate() {
             let lat = format!("{at}.layers[{li}] (\"{}\")", l.name);
             self.check_name(format!("{lat}.name"), &l.name)?;
-            if let Some(prev) = index.insert(l.name.clone(), li) {
-                return Err(self.err(format!("{lat}.name"), format!("also the name of layers[{prev}]")));
+            if let Some(prev) = index.insert(l.name.clone(), first + li) {
+                let what = match prev.checked_sub(first) {
+                    Some(prev) => format!("also the name of layers[{prev}]"),
+                    None => "also the name of the patch's body".into(),
+                };
+                return Err(self.err(format!("{lat}.name"), what));
             }
             // KCK18 section 3: a skin under anchors is Stable Neo-Hookean unless stated.
             let mut l = l.clone();
@@ -214,14 +299,19 @@ impl Builder {
             }
             layers.push(self.layer(&lat, &l, len, stress, offset, &layers, &index)?);
         }
-        self.check_interfaces(&at, p, &layers)?;
+        self.check_interfaces(&at, first, &layers)?;
         let cx = PatchContext { scene, layers: &layers, index: &index, len, stress, offset };
-        let drivers = p
-            .drivers
-            .iter()
-            .enumerate()
-            .map(|(di, d)| self.driver(&format!("{at}.drivers[{di}]"), d, &cx))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut drivers = Vec::new();
+        for (di, d) in p.drivers.iter().enumerate() {
+            let dat = format!("{at}.drivers[{di}]");
+            let built = self.driver(&dat, d, &cx)?;
+            if let (Some(bi), true) = (body, built.layers().contains(&0)) {
+                let message =
+                    format!("the body \"{}\" moves by its own drivers (bodies[{bi}].drivers)", layers[0].name);
+                return Err(self.err(dat, message));
+            }
+            drivers.push(built);
+        }
         let couplings = p
             .couplings
             .iter()
@@ -229,9 +319,14 @@ impl Builder {
             .map(|(ci, c)| self.coupling(&format!("{at}.couplings[{ci}]"), c, &cx))
             .collect::<Result<_, _>>()?;
         let anchors = p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &cx)).transpose()?;
-        let patch = BuiltPatch { name: p.name.clone(), solver, perturbation, layers, drivers, couplings, anchors };
+        let patch =
+            BuiltPatch { name: p.name.clone(), body, solver, perturbation, layers, drivers, couplings, anchors };
         if let Some((li, message)) = super::geometry::geometry_error(&patch) {
-            return Err(self.err(format!("{at}.layers[{li}] (\"{}\").mesh", patch.layers[li].name), message));
+            let field = match li.checked_sub(first) {
+                Some(own) => format!("{at}.layers[{own}] (\"{}\").mesh", patch.layers[li].name),
+                None => format!("{at}.body"),
+            };
+            return Err(self.err(field, message));
         }
         Ok(patch)
     }

@@ -15,12 +15,17 @@ use crate::model::{LayerKind, WeightMap};
 pub struct BuiltScene {
     pub path: PathBuf,
     pub scene: Scene,
+    /// Shared kinematic bodies: one layer each, no solver.
+    pub bodies: Vec<BuiltPatch>,
     pub patches: Vec<BuiltPatch>,
 }
 
 #[derive(Clone, Debug)]
 pub struct BuiltPatch {
     pub name: String,
+    /// The shared body the patch sits on (an index into `BuiltScene::bodies`): a copy of its
+    /// layer is `layers[0]` for building; spawn uses the body's own entity.
+    pub body: Option<usize>,
     pub solver: crate::solve::SolverSettings,
     /// The imperfection spawn applies to free shell vertices (SI lengths).
     pub perturbation: Option<Perturbation>,
@@ -102,6 +107,36 @@ impl SlabGrid {
     }
     pub(super) fn top_offset(&self) -> usize {
         (self.planes - 1) * self.plane_len()
+    }
+}
+
+impl BuiltDriver {
+    /// The layers the driver acts on.
+    pub fn layers(&self) -> Vec<usize> {
+        match self {
+            BuiltDriver::Pin { layer, .. }
+            | BuiltDriver::BlendShape { layer, .. }
+            | BuiltDriver::Sequence { layer, .. } => vec![*layer],
+            BuiltDriver::Attach { layer, to, .. } => vec![*layer, *to],
+            BuiltDriver::Compress { layers, .. }
+            | BuiltDriver::Bend { layers, .. }
+            | BuiltDriver::Joint { layers, .. }
+            | BuiltDriver::PlaneStrain { layers, .. }
+            | BuiltDriver::Periodic { layers, .. }
+            | BuiltDriver::Capture { layers, .. } => layers.clone(),
+        }
+    }
+
+    /// Whether it only moves its layers (what a shared body may take).
+    pub fn is_motion(&self) -> bool {
+        matches!(
+            self,
+            BuiltDriver::Compress { .. }
+                | BuiltDriver::Bend { .. }
+                | BuiltDriver::Joint { .. }
+                | BuiltDriver::BlendShape { .. }
+                | BuiltDriver::Sequence { .. }
+        )
     }
 }
 

@@ -314,7 +314,8 @@ impl Builder {
 
     /// Volume layers that touch (one's bottom on another's top) must share their interface
     /// vertices (TetOn): two unconnected slabs would slide through each other.
-    pub(super) fn check_interfaces(&self, at: &str, p: &PatchSpec, layers: &[BuiltLayer]) -> Result<(), SceneError> {
+    /// `first`: the index in `layers` of the patch's first own layer (1 on a shared body).
+    pub(super) fn check_interfaces(&self, at: &str, first: usize, layers: &[BuiltLayer]) -> Result<(), SceneError> {
         let volumes: Vec<(usize, DVec3, DVec3)> = layers
             .iter()
             .enumerate()
@@ -335,7 +336,7 @@ impl Builder {
                     let (na, nb) = (&layers[a].name, &layers[b].name);
                     let cells = |i: usize| layers[i].slab.map(|s| format!("{:?} cells", s.cells)).unwrap_or_default();
                     return Err(self.err(
-                        format!("{at}.layers[{b}] (\"{}\").mesh", p.layers[b].name),
+                        format!("{at}.layers[{}] (\"{}\").mesh", b - first, layers[b].name),
                         format!(
                             "the interface between \"{nb}\" ({}) and \"{na}\" ({}) does not match: the two \
                              volumes touch at z = {:.6} m without sharing vertices; stack \"{nb}\" with \

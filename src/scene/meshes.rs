@@ -169,7 +169,7 @@ impl Builder {
                 }
                 LayerMesh::Surface(mesh::bodies::creature(radius * len, *subdivisions))
             }
-            MeshSpec::Offset { layer, distance } => {
+            MeshSpec::Offset { layer, distance, region } => {
                 self.surface_only(&field, l.kind)?;
                 if !distance.is_finite() {
                     return Err(self.err(format!("{field}.distance"), "must be finite"));
@@ -182,6 +182,15 @@ impl Builder {
                     return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
                 };
                 let mut m = mesh::bodies::offset(m, distance * len);
+                if let Some(r) = region {
+                    let keep = self.region(&format!("{field}.region"), r, &m.uv, len)?;
+                    m = mesh::select::faces_within(&m, &keep);
+                    if m.faces.is_empty() {
+                        let message =
+                            format!("selects no face of \"{layer}\" (a face is in when all its vertices are)");
+                        return Err(self.err(format!("{field}.region"), message));
+                    }
+                }
                 m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
                 LayerMesh::Surface(m)
             }
@@ -253,6 +262,31 @@ pub(super) fn memory_error(vertices: u64, kind: LayerKind, total: f64, limit: f6
 }
 
 impl Builder {
+    /// Which vertices (material coordinates `uv`, metres) a surface region selects.
+    fn region(&self, field: &str, r: &RegionSpec, uv: &[DVec2], len: f64) -> Result<Vec<bool>, SceneError> {
+        match r {
+            RegionSpec::Uv { min, max } => {
+                let (lo, hi) = (DVec2::new(min.0, min.1) * len, DVec2::new(max.0, max.1) * len);
+                if !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()) {
+                    let message = format!("needs finite min < max in u and in v (got {min:?} to {max:?})");
+                    return Err(self.err(field, message));
+                }
+                Ok(uv.iter().map(|p| p.cmpge(lo).all() && p.cmple(hi).all()).collect())
+            }
+            RegionSpec::Mask { image, threshold } => {
+                if !(0.0..=1.0).contains(threshold) {
+                    return Err(self.err(format!("{field}.threshold"), format!("must be in [0, 1] (got {threshold})")));
+                }
+                let rect = LayerMesh::Surface(mesh::SurfaceMesh { uv: uv.to_vec(), ..Default::default() });
+                let map = self.weight_map(&format!("{field}.image"), image, &rect)?;
+                if map.values.is_empty() {
+                    return Err(self.err(format!("{field}.image"), "the mask is empty (0 pixels)"));
+                }
+                Ok(uv.iter().map(|&p| map.sample(p) >= *threshold).collect())
+            }
+        }
+    }
+
     /// Refuses a generated mesh of more than MAX_GENERATED_VERTICES vertices (counts per axis),
     /// or one the machine's memory cannot run beside the scene's earlier layers, before it is
     /// generated.

@@ -13,17 +13,47 @@ use crate::mesh::imperfection::Imperfection;
 use crate::model::*;
 use crate::physics::hinge::HingeRest;
 
-/// Spawns every patch of the scene and inserts the clock. Returns the patch entities.
+/// Spawns the shared bodies, then every patch of the scene, and inserts the clock. Returns the
+/// patch entities.
 pub fn spawn(world: &mut World, scene: &BuiltScene) -> Vec<Entity> {
     world.insert_resource(SimClock { frame: 0, time: 0.0, dt: scene.scene.frame_time });
     world.init_resource::<Timings>();
     world.init_resource::<FrameReport>();
     world.init_resource::<SimFailure>();
-    scene.patches.iter().enumerate().map(|(i, p)| spawn_patch(world, p, i as u32)).collect()
+    // A body is an owner of one layer, moved and logged like a patch's, and never solved.
+    let names: Vec<String> = scene.bodies.iter().map(|b| b.name.clone()).collect();
+    let bodies: Vec<SharedBody> = scene
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let (_, mut layers, mut vertices) = spawn_patch(world, b, i as u32, None, &names);
+            (layers.remove(0), vertices.remove(0))
+        })
+        .collect();
+    let first = bodies.len() as u32;
+    let patches = scene.patches.iter().enumerate();
+    patches.map(|(i, p)| spawn_patch(world, p, first + i as u32, p.body.map(|b| &bodies[b]), &names).0).collect()
 }
 
-fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
-    let patch = world.spawn((Patch { name: p.name.clone(), index }, p.solver.clone())).id();
+/// A spawned body's layer and the entities of its mesh vertices.
+type SharedBody = (Entity, Vec<Entity>);
+
+/// Spawns a patch (with `body`, the spawned body that is its layer 0) or, when its name is one
+/// of `scene_bodies` (names are unique across both), a body: no solver. Returns the patch, its
+/// layers and their vertices.
+fn spawn_patch(
+    world: &mut World,
+    p: &BuiltPatch,
+    index: u32,
+    body: Option<&SharedBody>,
+    scene_bodies: &[String],
+) -> (Entity, Vec<Entity>, Vec<Vec<Entity>>) {
+    let patch = world.spawn(Patch { name: p.name.clone(), index }).id();
+    let solved = !scene_bodies.contains(&p.name);
+    if solved {
+        world.entity_mut(patch).insert(p.solver.clone());
+    }
     let mut layer_vertices: Vec<Vec<Entity>> = Vec::new();
     let mut layers = Vec::new();
     let mut fixed = prescribed(p);
@@ -43,6 +73,12 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     }
     let mut all_rest = Vec::new();
     for (li, l) in final_layers(p, &fixed).into_iter().enumerate() {
+        if let (0, Some((layer, verts))) = (li, body) {
+            all_rest.extend_from_slice(l.mesh.rest());
+            layers.push(*layer);
+            layer_vertices.push(verts.clone());
+            continue;
+        }
         let owners: Vec<Option<Entity>> =
             l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
         let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li], &mass[li], &owners);
@@ -80,8 +116,14 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32) -> Entity {
     if !captures.is_empty() {
         world.entity_mut(patch).insert(PatchCaptures(captures));
     }
-    world.entity_mut(patch).insert((crate::solve::PackedPatch::default(), PackedIndex::default()));
-    patch
+    // The solve packs the body only where kernels hold the patch to it (anchors hold targets).
+    if body.is_some() && p.couplings.iter().any(|c| c.lower == 0 || c.upper == 0) {
+        world.entity_mut(patch).insert(PatchBodies(vec![layers[0]]));
+    }
+    if solved {
+        world.entity_mut(patch).insert((crate::solve::PackedPatch::default(), PackedIndex::default()));
+    }
+    (patch, layers, layer_vertices)
 }
 
 /// The patch's drivers (scene `drivers`): motions (about `centre`, the rest bounding box's) and

@@ -52,16 +52,17 @@ pub struct ElementItems<'w, 's> {
 }
 
 pub fn gather_packed(
-    mut patches: Query<(&PatchLayers, Option<&PatchKernels>, &mut PackedPatch, &mut PackedIndex)>,
+    mut patches: Query<(&PatchLayers, Option<&PatchBodies>, Option<&PatchKernels>, &mut PackedPatch, &mut PackedIndex)>,
     layers: Query<LayerItems>,
     items: ElementItems,
 ) {
-    for (patch_layers, patch_kernels, mut packed, mut index) in &mut patches {
+    for (patch_layers, bodies, patch_kernels, mut packed, mut index) in &mut patches {
         let (packed, index) = (packed.as_mut(), index.as_mut());
-        let key = topology_key(patch_layers, &layers);
+        let bodies = bodies.map_or(&[][..], |b| &b.0);
+        let key = topology_key(patch_layers.entities().iter().chain(bodies), &layers);
         let rebuilt = key != index.key;
         if rebuilt {
-            rebuild::rebuild(packed, index, patch_layers, &layers, &items);
+            rebuild::rebuild(packed, index, patch_layers, bodies, &layers, &items);
             anchor_springs::rebuild(packed, index, patch_layers, &layers, &items.anchors);
             index.key = key;
         }
@@ -90,15 +91,16 @@ pub fn gather_packed(
     }
 }
 
-/// A cheap fingerprint of a patch's topology: epochs and element counts of every layer, in order.
-fn topology_key(patch_layers: &PatchLayers, layers: &Query<LayerItems>) -> u64 {
+/// A cheap fingerprint of a patch's topology: epochs and element counts of every layer (its
+/// own, then shared bodies'), in order.
+fn topology_key<'a>(patch_layers: impl Iterator<Item = &'a Entity>, layers: &Query<LayerItems>) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut mix = |v: u64| {
         h ^= v;
         h = h.wrapping_mul(0x100_0000_01b3);
     };
     let count = |list: Option<&[Entity]>| list.map_or(0, |x| x.len()) as u64;
-    for &l in patch_layers.entities() {
+    for &l in patch_layers {
         if let Ok(item) = layers.get(l) {
             mix(l.to_bits());
             mix(item.epoch.0);

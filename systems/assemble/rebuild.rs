@@ -11,24 +11,35 @@ use skinsim::solve::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, Pa
 use super::{ElementItems, LayerItems, LayerItemsItem};
 
 /// Packs the patch's vertices (each once), their state and ties, and every element of its
-/// layers, and drops the solver's cache.
+/// layers, and drops the solver's cache. `bodies`: shared body layers packed after the patch's
+/// own, held fixed (`PatchBodies`).
 pub(super) fn rebuild(
     packed: &mut PackedPatch,
     index: &mut PackedIndex,
     patch_layers: &PatchLayers,
+    bodies: &[Entity],
     layers: &Query<LayerItems>,
     items: &ElementItems,
 ) {
     index.vertices.clear();
     index.index.clear();
-    for &l in patch_layers.entities() {
-        let Ok(LayerItemsItem { vertices: Some(verts), anchor_body: false, .. }) = layers.get(l) else { continue };
+    // A body under KCK18 anchors is not packed for its own patch; a shared one for kernels is.
+    let own = patch_layers.entities().iter().filter(|&&l| layers.get(l).is_ok_and(|i| !i.anchor_body));
+    let solved: Vec<Entity> = own.copied().chain(bodies.iter().copied()).collect();
+    for (i, &l) in solved.iter().enumerate() {
+        if i == solved.len() - bodies.len() {
+            index.own = index.vertices.len();
+        }
+        let Ok(LayerItemsItem { vertices: Some(verts), .. }) = layers.get(l) else { continue };
         for &v in verts.entities() {
             if let std::collections::hash_map::Entry::Vacant(slot) = index.index.entry(v) {
                 slot.insert(index.vertices.len() as u32);
                 index.vertices.push(v);
             }
         }
+    }
+    if bodies.is_empty() {
+        index.own = index.vertices.len();
     }
     let n = index.vertices.len();
     let state = &mut packed.state;
@@ -56,11 +67,8 @@ pub(super) fn rebuild(
     }
     let mut el = Elements::default();
     let (mut face_count, mut tet_count) = (0, 0);
-    for &l in patch_layers.entities() {
+    for &l in &solved {
         let Ok(layer) = layers.get(l) else { continue };
-        if layer.anchor_body {
-            continue;
-        }
         let material = layer.material;
         if let Some(lf) = layer.faces {
             face_count += lf.entities().len();

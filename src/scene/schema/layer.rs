@@ -217,8 +217,25 @@ pub enum MeshSpec {
     /// A closed lumpy creature (torso, four legs, head, tail) of 20 x 4^subdivisions triangles.
     Creature { radius: f64, subdivisions: u32 },
     /// An earlier surface layer's rest mesh moved `distance` along its vertex normals (a skin
-    /// over a body; its own vertices).
-    Offset { layer: String, distance: f64 },
+    /// over a body; its own vertices). With `region`, only the faces it selects: a patch on a
+    /// part of the body, its material space the body's.
+    Offset {
+        layer: String,
+        distance: f64,
+        #[serde(default)]
+        region: Option<RegionSpec>,
+    },
+}
+
+/// A part of a surface: the faces all of whose vertices it selects.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum RegionSpec {
+    /// Vertices whose material coordinates (the UVs; length units) lie in [min, max].
+    Uv { min: (f64, f64), max: (f64, f64) },
+    /// Vertices a painted greyscale image covers (>= threshold) stretched over the surface's
+    /// material rectangle, row 0 at its largest v (path relative to the scene file).
+    Mask { image: String, threshold: f64 },
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]

@@ -28,9 +28,28 @@ pub struct Scene {
     /// Seconds per frame (the time step of the implicit-Euler mode).
     #[serde(default = "default_frame_time")]
     pub frame_time: f64,
+    /// Kinematic bodies that several patches sit on (issue 24): each is one entity, moved by
+    /// its own drivers, which the patches that name it read and never copy.
+    #[serde(default)]
+    pub bodies: Vec<BodySpec>,
     pub patches: Vec<PatchSpec>,
     #[serde(default)]
     pub output: OutputSpec,
+}
+
+/// A kinematic body shared by patches: its surface, where it sits, and the drivers that move it
+/// (motions only: Joint, Bend, Compress, BlendShape, Sequence). A patch that names it as its
+/// `body` sees it as a layer of the same name, below its own.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Body")]
+pub struct BodySpec {
+    pub name: String,
+    pub mesh: MeshSpec,
+    /// Where the body sits in the world (length units).
+    #[serde(default)]
+    pub offset: (f64, f64, f64),
+    #[serde(default)]
+    pub drivers: Vec<DriverSpec>,
 }
 
 fn default_frame_time() -> f64 {
@@ -99,6 +118,10 @@ impl StressUnit {
 #[serde(deny_unknown_fields, rename = "Patch")]
 pub struct PatchSpec {
     pub name: String,
+    /// The shared body (`bodies`) the patch sits on: its layers, couplings and anchors may name
+    /// it as a layer; it is not copied, and the patch does not drive it.
+    #[serde(default)]
+    pub body: Option<String>,
     /// Where the patch sits in the world (length units).
     #[serde(default)]
     pub offset: (f64, f64, f64),
