@@ -3,6 +3,7 @@
 pub mod bodies;
 pub mod bounds;
 pub mod generate;
+pub mod hand;
 pub mod imperfection;
 pub mod locate;
 pub mod obj;

@@ -1,5 +1,6 @@
 //! Small tools around the engine, shared by the `skinsim` binary and the tests.
 
+pub mod asset;
 pub mod bake;
 pub mod film;
 pub mod layout;

@@ -98,6 +98,29 @@ enum Command {
         #[arg(long, value_enum, value_delimiter = ',')]
         cases: Vec<Lk14Case>,
     },
+    /// Write a procedural asset of the character scenes (scenes/character): `hand`, a hand-like
+    /// body (arm, palm, two fingers) as an OBJ with UVs, lengths in mm.
+    Asset {
+        #[arg(value_enum)]
+        kind: AssetKind,
+        /// Output folder.
+        #[arg(long, default_value = "scenes/character/assets")]
+        out: PathBuf,
+        /// File name without .obj.
+        #[arg(long, default_value = "hand")]
+        name: String,
+        /// Vertices around and cells along each finger.
+        #[arg(long, value_delimiter = ',', default_values_t = [72, 128])]
+        finger_cells: Vec<u32>,
+        /// Vertices around and cells along the arm and palm.
+        #[arg(long, value_delimiter = ',', default_values_t = [48, 45])]
+        arm_cells: Vec<u32>,
+    },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum AssetKind {
+    Hand,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -225,10 +248,36 @@ fn main() -> ExitCode {
         Command::Bake { scene, frames, weights, angles, size, out, layer, blend } => {
             bake(&scene, BakeRequest { frames, weights, angles, size, layer, blends: blend }, out)
         }
+        Command::Asset { kind: AssetKind::Hand, out, name, finger_cells, arm_cells } => {
+            asset_hand(&out, &name, &finger_cells, &arm_cells)
+        }
     });
     match result {
         Ok(code) => code,
         Err(_) => ExitCode::from(70),
+    }
+}
+
+fn asset_hand(out: &Path, name: &str, finger: &[u32], arm: &[u32]) -> ExitCode {
+    let cells = |c: &[u32]| (c[0], c[1]);
+    if finger.len() != 2 || arm.len() != 2 || finger.iter().chain(arm).any(|&c| c < 3) {
+        eprintln!("error: --finger-cells and --arm-cells take two numbers, around,along, each at least 3");
+        return ExitCode::from(2);
+    }
+    if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+        eprintln!("error: --name \"{name}\" must be a plain file name");
+        return ExitCode::from(2);
+    }
+    let shape = skinsim::mesh::hand::HandShape { finger_cells: cells(finger), arm_cells: cells(arm) };
+    match skinsim_tools::asset::write_hand(out, name, shape) {
+        Ok((v, f)) => {
+            println!("wrote {} ({v} vertices, {f} triangles)", out.join(format!("{name}.obj")).display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: cannot write {}: {e}", out.join(format!("{name}.obj")).display());
+            ExitCode::from(1)
+        }
     }
 }
 

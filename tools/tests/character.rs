@@ -116,3 +116,73 @@ fn angles_need_a_joint() {
     let e = frames_for(&built, &req(vec![f64::NAN])).unwrap_err();
     assert!(e.contains("--angles must be finite"), "{e}");
 }
+
+/// Issue 24, items 3 and 4: `hand_quick`, one hand-like body (an OBJ asset from `skinsim asset
+/// hand`) shared by two LK14 knuckle patches and a KCK18 wrist sleeve. The fingers curl 40
+/// degrees: each knuckle crease wrinkles over its joint at the kernel wavelength; the wrist
+/// bends 20 degrees under the sleeve, whose anchors walk over the body.
+#[test]
+fn the_hand_carries_two_knuckle_patches_and_a_sleeve_on_one_body() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/hand_quick.ron");
+    let built = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&built);
+    let clock = std::time::Instant::now();
+    for frame in 1..=built.scene.frames {
+        let s = sim.step();
+        assert!(sim.failure().is_none(), "frame {frame}: {:?}", sim.failure());
+        assert_eq!(s.patches.len(), 3);
+        assert!(s.patches.iter().all(|p| p.converged), "frame {frame}: {:?}", s.patches);
+    }
+    let per_frame = clock.elapsed().as_secs_f64() / built.scene.frames as f64;
+    // One body layer in the world, not one per patch.
+    let layers = sim.layers();
+    assert_eq!(layers.iter().filter(|(_, l, _)| l == "hand").count(), 1, "{layers:?}");
+    // Each knuckle: the skin's height over the body at the same material point, along the
+    // body's normal (the skin is cut from the body's offset: same material coordinates).
+    let (body_uv, body, body_faces) = sim.layer_surface("hand", "hand");
+    let normals = vertex_normals(&body, &body_faces);
+    let key = |u: DVec2| (u * 1e7).round().as_i64vec2().to_array();
+    let on_body: std::collections::HashMap<[i64; 2], usize> =
+        body_uv.iter().enumerate().map(|(i, u)| (key(*u), i)).collect();
+    for knuckle in ["knuckle_a", "knuckle_b"] {
+        let (uv, skin, _) = sim.layer_surface(knuckle, "skin");
+        let height: Vec<f64> = uv
+            .iter()
+            .zip(&skin)
+            .map(|(u, s)| {
+                let b = on_body[&key(*u)];
+                (*s - body[b]).dot(normals[b]) - 0.01875e-3
+            })
+            .collect();
+        let swing = |keep: &dyn Fn(f64) -> bool| {
+            let h: Vec<f64> = uv.iter().zip(&height).filter(|(u, _)| keep(u.x)).map(|(_, h)| *h).collect();
+            h.iter().fold(f64::NEG_INFINITY, |m, x| m.max(*x)) - h.iter().fold(f64::INFINITY, |m, x| m.min(*x))
+        };
+        // The joint at x = 35 mm blends over 30 mm; the patch spans x = 10-60 mm.
+        let joint = swing(&|x| (x - 0.035).abs() < 0.008);
+        let ends = swing(&|x| (x - 0.035).abs() > 0.021);
+        let (pos, mat): (Vec<DVec3>, Vec<DVec2>) = uv
+            .iter()
+            .zip(&height)
+            .filter(|(u, _)| (u.x - 0.035).abs() < 0.015)
+            .map(|(u, h)| (DVec3::new(0.0, 0.0, *h), *u))
+            .unzip();
+        let peaks = row_peaks(&pos, &mat, 0, 0.05);
+        let wavelength = 1e3 * peaks[0].wavelength;
+        println!(
+            "hand_quick {knuckle}: {} skin vertices; height swing {:.3} mm over the joint, {:.3} mm at the \
+             patch's ends; dominant wavelength {wavelength:.2} mm (kernels 6.00 mm)",
+            uv.len(),
+            1e3 * joint,
+            1e3 * ends
+        );
+        assert!(joint > 0.2e-3, "{knuckle}: wrinkles over the joint: {joint}");
+        assert!(ends < 0.5 * joint, "{knuckle}: fewer towards the straight parts: {ends} vs {joint}");
+        assert!((0.9..=1.4).contains(&(wavelength / 6.0)), "{knuckle}: wavelength {wavelength:.2} mm");
+    }
+    // The sleeve's anchors walked over the bending wrist.
+    let anchors = sim.anchors("sleeve");
+    let walked = anchors.iter().filter(|(_, s)| s.walked > 0.0).count();
+    println!("hand_quick: {per_frame:.2} s/frame; sleeve: {walked} of {} anchors walked", anchors.len());
+    assert!(!anchors.is_empty() && walked > anchors.len() / 10, "{walked} of {}", anchors.len());
+}
