@@ -13,7 +13,7 @@ use skinsim::mesh::usd::UsdStage;
 use skinsim::scene::{self, BuiltScene};
 use skinsim_systems::log::{Colouring, ObjExport, RerunSink, UsdExport};
 use skinsim_systems::Simulation;
-use skinsim_tools::bake::BakeRequest;
+use skinsim_tools::bake::{BakeRequest, MapLayout};
 
 #[derive(Parser)]
 #[command(name = "skinsim", version, about = "Physically based wrinkling of multi-layer skin")]
@@ -66,6 +66,11 @@ enum Command {
         /// Also write blends of the first two maps at these weights, e.g. 0.5.
         #[arg(long, value_delimiter = ',')]
         blend: Vec<f64>,
+        /// material: a map per layer over its material rectangle, world-space normals. asset:
+        /// a map per shared body over its UV layout (the patches on it at their UVs), normals
+        /// in the body's tangent space.
+        #[arg(long, value_enum, default_value = "material")]
+        layout: LayoutArg,
     },
     /// Timing table (VALIDATION.md G): per-frame stage times of scenes in the columns of LK14
     /// table 6-1, beside LK14's figures; writes <out>/timing.md.
@@ -116,6 +121,12 @@ enum Command {
         #[arg(long, value_delimiter = ',', default_values_t = [48, 45])]
         arm_cells: Vec<u32>,
     },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum LayoutArg {
+    Material,
+    Asset,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -245,8 +256,12 @@ fn main() -> ExitCode {
             report(&out, quick, only, element, &cases)
         }
         Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
-        Command::Bake { scene, frames, weights, angles, size, out, layer, blend } => {
-            bake(&scene, BakeRequest { frames, weights, angles, size, layer, blends: blend }, out)
+        Command::Bake { scene, frames, weights, angles, size, out, layer, blend, layout } => {
+            let layout = match layout {
+                LayoutArg::Material => MapLayout::Material,
+                LayoutArg::Asset => MapLayout::Asset,
+            };
+            bake(&scene, BakeRequest { frames, weights, angles, size, layer, blends: blend, layout }, out)
         }
         Command::Asset { kind: AssetKind::Hand, out, name, finger_cells, arm_cells } => {
             asset_hand(&out, &name, &finger_cells, &arm_cells)
@@ -613,8 +628,17 @@ fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
         let _ = rec.flush_blocking();
     }
     match result {
-        Ok(maps) => {
-            for m in &maps {
+        Ok(baked) => {
+            for w in &baked.warnings {
+                eprintln!("warning: {w}");
+            }
+            for (body, lo, hi) in &baked.rectangles {
+                // (in the OBJ's own texture coordinates: material space is vt x the length unit)
+                let unit = scene.scene.units.length.to_si();
+                let vt = |v: glam::DVec2| (v / unit).to_array().map(|x| format!("{x:.4}")).join(", ");
+                println!("{body}: the map spans the body's texture coordinates from ({}) to ({})", vt(*lo), vt(*hi));
+            }
+            for m in &baked.maps {
                 println!("frame {:>5}  {}/{}  {}", m.frame, m.patch, m.layer, m.path.display());
             }
             ExitCode::SUCCESS
