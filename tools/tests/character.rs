@@ -251,3 +251,48 @@ fn asset_maps_in_tangent_space_blend_by_angle_and_name_bad_uv_triangles() {
 /// The tangent-space blend's bound over the knuckle pixels: measured 2.27 degrees (the key maps
 /// alone: 4.48 and 2.65), with margin. Tangent space takes the finger's turn out of the maps.
 const TANGENT_BLEND_BOUND_DEGREES: f64 = 3.0;
+
+/// Issue 24, item 4 (LK14 fig. 6-5): `curved_sheet_quick`, one shell on a compressed cylinder
+/// strip, its thickness ramping from 0.25x to 1x around the arc. Geodesic eq. 3.1 kernels
+/// (lambda ~ h^1/2) make the wrinkles shorter where the shell is thin: the wavelength along the
+/// axis in the thinnest third against the thickest third.
+#[test]
+fn the_curved_sheet_wrinkles_shorter_where_it_is_thinner() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/curved_sheet_quick.ron");
+    let built = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&built);
+    for frame in 1..=built.scene.frames {
+        let s = sim.step();
+        assert!(sim.failure().is_none() && s.patches[0].converged, "frame {frame}: {:?}", s.patches[0]);
+    }
+    // Heights over the base along its normals (the skin is the base's offset: same vertices).
+    let (_, base, faces) = sim.layer_surface("sheet", "base");
+    let (uv, skin, _) = sim.layer_surface("sheet", "skin");
+    let normals = vertex_normals(&base, &faces);
+    let height: Vec<f64> = skin.iter().zip(&base).zip(&normals).map(|((s, b), n)| (*s - *b).dot(*n)).collect();
+    let (lo, hi) = skinsim::mesh::bounds(&uv);
+    let third = (hi.y - lo.y) / 3.0;
+    let wavelength_in = |v0: f64, v1: f64| {
+        let (pos, mat): (Vec<DVec3>, Vec<DVec2>) = uv
+            .iter()
+            .zip(&height)
+            .filter(|(u, _)| (v0..=v1).contains(&u.y))
+            .map(|(u, h)| (DVec3::new(0.0, 0.0, *h), *u))
+            .unzip();
+        1e3 * row_peaks(&pos, &mat, 0, 0.05)[0].wavelength
+    };
+    let (thin, thick) = (wavelength_in(lo.y, lo.y + third), wavelength_in(hi.y - third, hi.y));
+    // Eq. 3.1: 4 (0.1 x 15)^1/2 (4 / 0.5)^1/6 = 6.93 mm at full thickness, times the square
+    // root of the thirds' mean thickness factors, 0.375 and 0.875.
+    let full = 4.0 * (0.1f64 * 15.0).sqrt() * 8.0f64.powf(1.0 / 6.0);
+    let (kernel_thin, kernel_thick) = (full * 0.375f64.sqrt(), full * 0.875f64.sqrt());
+    println!(
+        "curved_sheet_quick: wavelength {thin:.2} mm on the thin third (kernels {kernel_thin:.2} mm), {thick:.2} mm \
+         on the thick third (kernels {kernel_thick:.2} mm)"
+    );
+    assert!(thin < thick, "shorter where thinner: {thin} vs {thick}");
+    // Kernels bound a wavelength to a band (`coupling::kernels::KERNEL_SCALE`: 0.9-1.4 lambda).
+    for (measured, kernel) in [(thin, kernel_thin), (thick, kernel_thick)] {
+        assert!((0.9..=1.4).contains(&(measured / kernel)), "{measured:.2} mm against the kernels' {kernel:.2} mm");
+    }
+}
