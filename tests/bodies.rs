@@ -136,3 +136,28 @@ fn a_body_moves_by_its_own_drivers_only() {
     ));
     mentions(&e, &["patches[0] (\"near\").offset", "sits where the body is"]);
 }
+
+#[test]
+fn a_region_can_be_an_obj_group() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/character");
+    let text = |region: &str| {
+        format!(
+            r#"Scene(name: "groups", frames: 1,
+            bodies: [Body(name: "hand", mesh: Obj(path: "assets/hand_quick.obj"))],
+            patches: [Patch(name: "p", body: "hand", layers: [
+                Layer(name: "skin", kind: Shell, mesh: Offset(layer: "hand", distance: 0.02, region: {region}),
+                      material: (young: 4.0, poisson: 0.45, thickness: 0.04))])])"#
+        )
+    };
+    let built = load_str(&text(r#"Group("finger_a")"#), &dir.join("groups.ron")).unwrap_or_else(|e| panic!("{e}"));
+    let skinsim::scene::built::LayerMesh::Surface(m) = &built.patches[0].layers[1].mesh else { panic!("a surface") };
+    // `skinsim asset hand --finger-cells 40,96`: one finger is 40 x 96 quads.
+    assert_eq!((m.faces.len(), m.rest.len()), (2 * 40 * 96, 40 * 97));
+    assert!(m.rest.iter().all(|p| p.y < 0.0), "finger a lies at y = -10 mm");
+    let e = load_str(&text(r#"Group("thumb")"#), &dir.join("groups.ron")).unwrap_err();
+    mentions(&e, &["mesh.region", "no group \"thumb\"", "\"arm\", \"finger_a\", \"finger_b\""]);
+    let tube = scene(&[("near", (-12.0, 12.0))])
+        .replace("region: Uv(min: (-12.0, 16.0), max: (12.0, 34.0))", r#"region: Group("finger_a")"#);
+    let e = err(&tube);
+    mentions(&e, &["mesh.region", "\"arm\" is not an OBJ mesh"]);
+}

@@ -31,11 +31,33 @@ pub enum ObjError {
 /// Loads a triangle surface. Positions are multiplied by `to_metres`; material coordinates come
 /// from `vt` (scaled the same way) or, without texture coordinates, from the rest xy.
 pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, ObjError> {
+    load_groups(path, to_metres).map(|(m, _)| m)
+}
+
+/// The OBJ's groups: each `o` or `g` name with the faces it holds.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FaceGroups {
+    pub names: Vec<String>,
+    /// Per face, the index of its group in `names`.
+    pub of_face: Vec<u32>,
+}
+
+/// `load`, and which `o` / `g` group each face belongs to.
+pub fn load_groups(path: &Path, to_metres: f64) -> Result<(SurfaceMesh, FaceGroups), ObjError> {
     scan(path)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
     let (models, _) = tobj::load_obj(path, &opts)?;
     let mut m = SurfaceMesh::default();
+    let mut groups = FaceGroups::default();
     for model in models {
+        let group = match groups.names.iter().position(|n| *n == model.name) {
+            Some(g) => g,
+            None => {
+                groups.names.push(model.name.clone());
+                groups.names.len() - 1
+            }
+        };
+        groups.of_face.extend(std::iter::repeat_n(group as u32, model.mesh.indices.len() / 3));
         let mesh = model.mesh;
         let base = m.rest.len() as u32;
         let nv = mesh.positions.len() / 3;
@@ -53,7 +75,7 @@ pub fn load(path: &Path, to_metres: f64) -> Result<SurfaceMesh, ObjError> {
         }
         m.faces.extend(mesh.indices.chunks_exact(3).map(|f| [f[0] + base, f[1] + base, f[2] + base]));
     }
-    Ok(m)
+    Ok((m, groups))
 }
 
 /// Whether the file states texture coordinates (`vt` lines).

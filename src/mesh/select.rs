@@ -39,10 +39,10 @@ pub fn select(rest: &[DVec3], region: &Region) -> Vec<u32> {
         .collect()
 }
 
-/// The faces all of whose vertices `keep` selects, over the vertices they use (in their old
-/// order): a region of a surface as a mesh of its own.
+/// The faces `keep` selects, over the vertices they use (in their old order): a region of a
+/// surface as a mesh of its own.
 pub fn faces_within(m: &SurfaceMesh, keep: &[bool]) -> SurfaceMesh {
-    let faces: Vec<[u32; 3]> = m.faces.iter().filter(|f| f.iter().all(|&v| keep[v as usize])).copied().collect();
+    let faces: Vec<[u32; 3]> = m.faces.iter().zip(keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
     let mut new_index = vec![u32::MAX; m.rest.len()];
     faces.iter().flatten().for_each(|&v| new_index[v as usize] = 0);
     let mut out = SurfaceMesh::default();

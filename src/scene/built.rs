@@ -69,6 +69,8 @@ pub struct BuiltLayer {
     pub shared: Vec<Option<(usize, u32)>>,
     /// The prism grid of a volume slab, for layers stacked on it.
     pub slab: Option<SlabGrid>,
+    /// An OBJ surface's `o` / `g` groups (for regions cut out of it).
+    pub groups: Option<crate::mesh::obj::FaceGroups>,
     pub material: Option<crate::model::Material>,
     pub thickness: Option<f64>,
     pub bending: Option<crate::model::Bending>,

@@ -35,7 +35,7 @@ impl Builder {
         earlier: &[BuiltLayer],
         index: &HashMap<String, usize>,
     ) -> Result<BuiltLayer, SceneError> {
-        let (mesh, shared, slab) = self.mesh(at, l, len, offset, earlier, index)?;
+        let (mesh, shared, slab, groups) = self.mesh(at, l, len, offset, earlier, index)?;
         let needs_material = l.kind != LayerKind::Kinematic;
         let (mut material, mut thickness) = (None, None);
         match (&l.material, needs_material) {
@@ -162,6 +162,7 @@ impl Builder {
             mesh,
             shared,
             slab,
+            groups,
             material,
             thickness,
             bending,

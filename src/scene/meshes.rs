@@ -10,6 +10,7 @@ use super::built::{BuiltLayer, LayerMesh, SlabGrid};
 use super::schema::*;
 use super::SceneError;
 use crate::mesh;
+use crate::mesh::obj::FaceGroups;
 use crate::model::LayerKind;
 
 impl Builder {
@@ -22,7 +23,7 @@ impl Builder {
         offset: DVec3,
         earlier: &[BuiltLayer],
         index: &HashMap<String, usize>,
-    ) -> Result<(LayerMesh, Vec<Option<(usize, u32)>>, Option<SlabGrid>), SceneError> {
+    ) -> Result<(LayerMesh, Vec<Option<(usize, u32)>>, Option<SlabGrid>, Option<FaceGroups>), SceneError> {
         let field = format!("{at}.mesh");
         let base_slab = |name: &str| -> Result<(usize, SlabGrid), SceneError> {
             let i = *index.get(name).ok_or_else(|| {
@@ -38,6 +39,7 @@ impl Builder {
         };
         let mut shared = Vec::new();
         let mut slab = None;
+        let mut groups = None;
         let positive = |v: f64, what: &str| -> Result<(), SceneError> {
             if v > 0.0 && v.is_finite() {
                 Ok(())
@@ -93,7 +95,9 @@ impl Builder {
                 if let Some(problem) = not_a_file(&full) {
                     return Err(SceneError::at_field(&full, &field, format!("mesh file {problem}")));
                 }
-                let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
+                let (m, g) =
+                    mesh::obj::load_groups(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
+                groups = Some(g);
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 // A shell's material space (kernels, property and wrinkle maps) falls back to the
                 // rest xy without `vt`: right for a flat sheet, a distortion of a curved one.
@@ -182,13 +186,16 @@ impl Builder {
                     return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
                 };
                 let mut m = mesh::bodies::offset(m, distance * len);
+                groups = base.groups.clone();
                 if let Some(r) = region {
-                    let keep = self.region(&format!("{field}.region"), r, &m.uv, len)?;
+                    let keep = self.region(&format!("{field}.region"), r, &m, base, len)?;
                     m = mesh::select::faces_within(&m, &keep);
                     if m.faces.is_empty() {
-                        let message =
-                            format!("selects no face of \"{layer}\" (a face is in when all its vertices are)");
+                        let message = format!("selects no face of \"{layer}\"");
                         return Err(self.err(format!("{field}.region"), message));
+                    }
+                    if let Some(g) = &mut groups {
+                        g.of_face = g.of_face.iter().zip(&keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
                     }
                 }
                 m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
@@ -212,7 +219,7 @@ impl Builder {
                 *s = owner;
             }
         }
-        Ok((mesh, shared, slab))
+        Ok((mesh, shared, slab, groups))
     }
 
     fn surface_only(&self, field: &str, kind: LayerKind) -> Result<(), SceneError> {
@@ -262,16 +269,38 @@ pub(super) fn memory_error(vertices: u64, kind: LayerKind, total: f64, limit: f6
 }
 
 impl Builder {
-    /// Which vertices (material coordinates `uv`, metres) a surface region selects.
-    fn region(&self, field: &str, r: &RegionSpec, uv: &[DVec2], len: f64) -> Result<Vec<bool>, SceneError> {
-        match r {
+    /// Which faces of `m` (a copy of `base`'s surface) a region selects: by UV rectangle or mask
+    /// the faces all of whose vertices it covers, by group the faces of the base's OBJ group.
+    fn region(
+        &self,
+        field: &str,
+        r: &RegionSpec,
+        m: &mesh::SurfaceMesh,
+        base: &BuiltLayer,
+        len: f64,
+    ) -> Result<Vec<bool>, SceneError> {
+        let uv = &m.uv;
+        let inside: Vec<bool> = match r {
+            RegionSpec::Group(name) => {
+                let Some(groups) = &base.groups else {
+                    let message = format!("\"{}\" is not an OBJ mesh: it has no groups (`o` / `g`)", base.name);
+                    return Err(self.err(field, message));
+                };
+                let Some(g) = groups.names.iter().position(|n| n == name) else {
+                    let names: Vec<String> = groups.names.iter().map(|n| format!("\"{n}\"")).collect();
+                    let message =
+                        format!("no group \"{name}\" in \"{}\" (its groups: {})", base.name, names.join(", "));
+                    return Err(self.err(field, message));
+                };
+                return Ok(groups.of_face.iter().map(|&f| f == g as u32).collect());
+            }
             RegionSpec::Uv { min, max } => {
                 let (lo, hi) = (DVec2::new(min.0, min.1) * len, DVec2::new(max.0, max.1) * len);
                 if !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()) {
                     let message = format!("needs finite min < max in u and in v (got {min:?} to {max:?})");
                     return Err(self.err(field, message));
                 }
-                Ok(uv.iter().map(|p| p.cmpge(lo).all() && p.cmple(hi).all()).collect())
+                uv.iter().map(|p| p.cmpge(lo).all() && p.cmple(hi).all()).collect()
             }
             RegionSpec::Mask { image, threshold } => {
                 if !(0.0..=1.0).contains(threshold) {
@@ -282,9 +311,10 @@ impl Builder {
                 if map.values.is_empty() {
                     return Err(self.err(format!("{field}.image"), "the mask is empty (0 pixels)"));
                 }
-                Ok(uv.iter().map(|&p| map.sample(p) >= *threshold).collect())
+                uv.iter().map(|&p| map.sample(p) >= *threshold).collect()
             }
-        }
+        };
+        Ok(m.faces.iter().map(|f| f.iter().all(|&v| inside[v as usize])).collect())
     }
 
     /// Refuses a generated mesh of more than MAX_GENERATED_VERTICES vertices (counts per axis),

@@ -1,7 +1,8 @@
 //! The viewer layout sent with every recording and live stream (Rerun's blueprint API): per
 //! patch a 3D view of its layers (with the body and anchors where it has them) over its energy,
-//! residual and Newton iterations; beside them one plot of the stage timings the scene runs, and
-//! for remeshed layers their material-space view, and the colour legend.
+//! residual and Newton iterations; first, per shared body, a 3D view of the body with every
+//! patch on it; beside them one plot of the stage timings the scene runs, and for remeshed
+//! layers their material-space view, and the colour legend.
 
 use rerun::blueprint::{
     Blueprint, ContainerLike, Horizontal, Spatial3DView, Tabs, TextDocumentView, TimeSeriesView, Vertical,
@@ -11,11 +12,23 @@ use skinsim::scene::BuiltScene;
 /// The layout for `scene`; `stages`: the keys of the stages that ran (a stage that never runs
 /// gets no plot).
 pub fn layout(scene: &BuiltScene, stages: &[String]) -> Blueprint {
-    let patches: Vec<ContainerLike> = scene
-        .patches
-        .iter()
-        .map(|p| {
-            let view = Spatial3DView::new(p.name.clone()).with_origin(format!("/patches/{}", p.name));
+    // A shared body's tab: the body and every patch on it, as the character is seen.
+    let bodies = scene.bodies.iter().enumerate().map(|(bi, b)| {
+        let on: Vec<String> = std::iter::once(&b.name)
+            .chain(scene.patches.iter().filter(|p| p.body == Some(bi)).map(|p| &p.name))
+            .map(|n| format!("+ /patches/{n}/**"))
+            .collect();
+        Spatial3DView::new(b.name.clone()).with_origin("/patches").with_contents(on).into()
+    });
+    let patches: Vec<ContainerLike> = bodies
+        .chain(scene.patches.iter().map(|p| {
+            let view = match p.body {
+                Some(bi) => Spatial3DView::new(p.name.clone()).with_origin("/patches").with_contents([
+                    format!("+ /patches/{}/**", p.name),
+                    format!("+ /patches/{}/**", scene.bodies[bi].name),
+                ]),
+                None => Spatial3DView::new(p.name.clone()).with_origin(format!("/patches/{}", p.name)),
+            };
             let series = ["energy", "residual", "newton_iterations"].map(|s| {
                 TimeSeriesView::new(format!("{} {}", p.name, s.replace('_', " ")))
                     .with_origin(format!("/stats/{}/{s}", p.name))
@@ -23,7 +36,7 @@ pub fn layout(scene: &BuiltScene, stages: &[String]) -> Blueprint {
             });
             let column = Vertical::new([view.into(), Horizontal::new(series).into()]).with_row_shares([3.0, 1.0]);
             column.with_name(p.name.clone()).into()
-        })
+        }))
         .collect();
     let timings = TimeSeriesView::new("stage timings (ms)")
         .with_origin("/timings")

@@ -227,7 +227,8 @@ pub enum MeshSpec {
     },
 }
 
-/// A part of a surface: the faces all of whose vertices it selects.
+/// A part of a surface: by UV rectangle or mask, the faces all of whose vertices it selects; by
+/// group, the group's faces.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub enum RegionSpec {
@@ -236,6 +237,8 @@ pub enum RegionSpec {
     /// Vertices a painted greyscale image covers (>= threshold) stretched over the surface's
     /// material rectangle, row 0 at its largest v (path relative to the scene file).
     Mask { image: String, threshold: f64 },
+    /// The faces of an OBJ group (`o` or `g` name) of the surface's OBJ file.
+    Group(String),
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]
