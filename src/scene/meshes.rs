@@ -95,8 +95,8 @@ impl Builder {
                 if let Some(problem) = not_a_file(&full) {
                     return Err(SceneError::at_field(&full, &field, format!("mesh file {problem}")));
                 }
-                let (m, g) =
-                    mesh::obj::load_groups(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
+                let (m, g) = mesh::obj::load_groups(&full, len)
+                    .map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 groups = Some(g);
                 mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
                 // A shell's material space (kernels, property and wrinkle maps) falls back to the

@@ -51,12 +51,21 @@ pub struct ElementItems<'w, 's> {
     pub thickness: Query<'w, 's, (&'static Thickness, Option<&'static LayerProperties>)>,
 }
 
-pub fn gather_packed(
-    mut patches: Query<(&PatchLayers, Option<&PatchBodies>, Option<&PatchKernels>, &mut PackedPatch, &mut PackedIndex)>,
-    layers: Query<LayerItems>,
-    items: ElementItems,
-) {
-    for (patch_layers, bodies, patch_kernels, mut packed, mut index) in &mut patches {
+/// What Assemble reads and writes of a patch.
+#[derive(QueryData)]
+#[query_data(mutable)]
+pub struct PatchItems {
+    pub layers: &'static PatchLayers,
+    /// Shared bodies its kernels hold it to (packed after its own vertices, held fixed).
+    pub bodies: Option<&'static PatchBodies>,
+    pub kernels: Option<&'static PatchKernels>,
+    pub packed: &'static mut PackedPatch,
+    pub index: &'static mut PackedIndex,
+}
+
+pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, items: ElementItems) {
+    for patch in &mut patches {
+        let PatchItemsItem { layers: patch_layers, bodies, kernels: patch_kernels, mut packed, mut index } = patch;
         let (packed, index) = (packed.as_mut(), index.as_mut());
         let bodies = bodies.map_or(&[][..], |b| &b.0);
         let key = topology_key(patch_layers.entities().iter().chain(bodies), &layers);
