@@ -296,3 +296,17 @@ fn the_curved_sheet_wrinkles_shorter_where_it_is_thinner() {
         assert!((0.9..=1.4).contains(&(measured / kernel)), "{measured:.2} mm against the kernels' {kernel:.2} mm");
     }
 }
+
+/// The shipped assets are what `skinsim asset hand` writes (scenes/character/README.md gives the
+/// commands): the quick one is rebuilt here and compared byte for byte.
+#[test]
+fn the_hand_asset_is_the_tools_output() {
+    let out = std::env::temp_dir().join(format!("skinsim_hand_asset_{}", std::process::id()));
+    let shape = skinsim::mesh::hand::HandShape { finger_cells: (40, 96), arm_cells: (32, 30) };
+    let (vertices, faces) = skinsim_tools::asset::write_hand(&out, "hand_quick", shape).unwrap();
+    assert_eq!((vertices, faces), (8752, 17280));
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/assets/hand_quick.obj");
+    let same = std::fs::read(out.join("hand_quick.obj")).unwrap() == std::fs::read(shipped).unwrap();
+    let _ = std::fs::remove_dir_all(&out);
+    assert!(same, "scenes/character/assets/hand_quick.obj differs from the tool's output: regenerate it");
+}
