@@ -176,6 +176,41 @@ fn peaks_of(mag: &[f64], length: f64, periodic: bool, min_strength: f64) -> Vec<
     out
 }
 
+/// How alike two lines of a wrinkled surface are: the correlation of the heights (z, mean
+/// removed) along `axis` of the lines of vertices nearest to fractions `a` and `b` of the width
+/// across it (material coordinates). 1 for straight wrinkles across the patch; lower for a
+/// pattern that differs from line to line (issue 25: a randomized stratum corneum breaks the
+/// symmetry a uniform one keeps).
+pub fn line_correlation(positions: &[DVec3], material: &[DVec2], axis: usize, a: f64, b: f64) -> f64 {
+    let across = 1 - axis;
+    let (lo, hi) =
+        material.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), m| (l.min(m[across]), h.max(m[across])));
+    let nearest = |f: f64| {
+        let target = lo + f * (hi - lo);
+        material
+            .iter()
+            .map(|m| m[across])
+            .min_by(|x, y| (x - target).abs().total_cmp(&(y - target).abs()))
+            .unwrap_or(lo)
+    };
+    let line = |f: f64| {
+        let at = nearest(f);
+        let mut l: Vec<(f64, f64)> = positions
+            .iter()
+            .zip(material)
+            .filter(|(_, m)| (m[across] - at).abs() <= 1e-9 * (hi - lo).max(f64::MIN_POSITIVE))
+            .map(|(p, m)| (m[axis], p.z))
+            .collect();
+        l.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mean = l.iter().map(|x| x.1).sum::<f64>() / l.len().max(1) as f64;
+        l.into_iter().map(|x| x.1 - mean).collect::<Vec<f64>>()
+    };
+    let (u, v) = (line(a), line(b));
+    let n = u.len().min(v.len());
+    let dot = |p: &[f64], q: &[f64]| p[..n].iter().zip(&q[..n]).map(|(x, y)| x * y).sum::<f64>();
+    dot(&u, &v) / (dot(&u, &u) * dot(&v, &v)).sqrt().max(f64::MIN_POSITIVE)
+}
+
 /// The strain at which wrinkles appear: a least-squares fit of A^2 = c (eps - eps_0) (the
 /// supercritical branch, A = h sqrt(eps / eps_c - 1)) over the points whose amplitude exceeds
 /// `min_amplitude`. None with fewer than two such points.
