@@ -30,20 +30,27 @@ pub fn tube_arc(radius: f64, length: f64, around: u32, along: u32, arc: f64) -> 
             m.uv.push(DVec2::new(x, radius * theta));
         }
     }
+    tube_faces(&mut m.faces, 0, columns, around, along);
+    m
+}
+
+/// The triangles of a tube whose rings of `columns` vertices start at vertex `base`: `around`
+/// quads per ring (the last one closing the ring when `around == columns`), `along` rings of
+/// quads.
+pub(crate) fn tube_faces(faces: &mut Vec<[u32; 3]>, base: u32, columns: u32, around: u32, along: u32) {
     for i in 0..along {
         for j in 0..around {
-            let v = |di: u32, dj: u32| (i + di) * columns + (j + dj) % columns;
+            let v = |di: u32, dj: u32| base + (i + di) * columns + (j + dj) % columns;
             // Alternate the diagonals so the tube has no handedness.
             if (i + j) % 2 == 0 {
-                m.faces.push([v(0, 0), v(1, 0), v(1, 1)]);
-                m.faces.push([v(0, 0), v(1, 1), v(0, 1)]);
+                faces.push([v(0, 0), v(1, 0), v(1, 1)]);
+                faces.push([v(0, 0), v(1, 1), v(0, 1)]);
             } else {
-                m.faces.push([v(0, 0), v(1, 0), v(0, 1)]);
-                m.faces.push([v(1, 0), v(1, 1), v(0, 1)]);
+                faces.push([v(0, 0), v(1, 0), v(0, 1)]);
+                faces.push([v(1, 0), v(1, 1), v(0, 1)]);
             }
         }
     }
-    m
 }
 
 /// A closed creature-like body of about 20 x 4^subdivisions triangles: a subdivided

@@ -80,19 +80,7 @@ fn tube(
         }
         v_max = v_max.max(v + (ring[0] - ring[ring.len() - 1]).length());
     }
-    for i in 0..along {
-        for j in 0..around {
-            let v = |di: u32, dj: u32| base + (i + di) * around + (j + dj) % around;
-            // Alternate the diagonals so the tube has no handedness.
-            if (i + j) % 2 == 0 {
-                m.faces.push([v(0, 0), v(1, 0), v(1, 1)]);
-                m.faces.push([v(0, 0), v(1, 1), v(0, 1)]);
-            } else {
-                m.faces.push([v(0, 0), v(1, 0), v(0, 1)]);
-                m.faces.push([v(1, 0), v(1, 1), v(0, 1)]);
-            }
-        }
-    }
+    super::bodies::tube_faces(&mut m.faces, base, around, around, along);
     v_max
 }
 
