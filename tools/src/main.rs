@@ -306,9 +306,16 @@ fn load(path: &Path) -> Result<BuiltScene, ExitCode> {
 fn check(path: &Path) -> ExitCode {
     match load(path) {
         Ok(s) => {
-            let verts: usize = s.patches.iter().flat_map(|p| &p.layers).map(|l| l.mesh.rest().len()).sum();
+            // A shared body counts once (a patch on it holds a copy as its layer 0).
+            let own = s.patches.iter().flat_map(|p| &p.layers[p.body.map_or(0, |_| 1)..]);
+            let verts: usize = own.chain(s.bodies.iter().flat_map(|b| &b.layers)).map(|l| l.mesh.rest().len()).sum();
+            let bodies = match s.bodies.len() {
+                0 => String::new(),
+                1 => "1 body, ".into(),
+                n => format!("{n} bodies, "),
+            };
             println!(
-                "{}: ok ({} patches, {} vertices, {} frames)",
+                "{}: ok ({bodies}{} patches, {} vertices, {} frames)",
                 path.display(),
                 s.patches.len(),
                 verts,
