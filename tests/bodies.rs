@@ -161,3 +161,29 @@ fn a_region_can_be_an_obj_group() {
     let e = err(&tube);
     mentions(&e, &["mesh.region", "\"arm\" is not an OBJ mesh"]);
 }
+
+#[test]
+fn a_region_can_be_a_painted_mask() {
+    // A mask over the arm's material rectangle (u = x from -30 to 30 mm, v = arc length), white
+    // on its left half (u < 0) only.
+    let dir = common::scratch_dir("bodies-mask");
+    let mask = image::GrayImage::from_fn(64, 64, |x, _| image::Luma([if x < 32 { 255 } else { 0 }]));
+    mask.save(dir.join("left.png")).unwrap();
+    let text = |threshold: f64| {
+        format!(
+            r#"Scene(name: "mask", frames: 1,
+            bodies: [Body(name: "arm", mesh: Tube(radius: 8.0, length: 60.0, cells: (64, 60)))],
+            patches: [Patch(name: "p", body: "arm", layers: [
+                Layer(name: "skin", kind: Shell,
+                      mesh: Offset(layer: "arm", distance: 0.02, region: Mask(image: "left.png", threshold: {threshold:.1})),
+                      material: (young: 4.0, poisson: 0.45, thickness: 0.04))])])"#
+        )
+    };
+    let built = load_str(&text(0.5), &dir.join("mask.ron")).unwrap_or_else(|e| panic!("{e}"));
+    let skinsim::scene::built::LayerMesh::Surface(m) = &built.patches[0].layers[1].mesh else { panic!("a surface") };
+    // The left half of the tube: 30 of its 60 rings of quads (the painted edge is at u = 0).
+    assert_eq!(m.faces.len(), 2 * 64 * 30, "faces");
+    assert!(m.uv.iter().all(|u| u.x <= 1e-9), "only the painted (left) half");
+    let e = load_str(&text(1.5), &dir.join("mask.ron")).unwrap_err();
+    mentions(&e, &["region.threshold", "[0, 1]"]);
+}
