@@ -21,36 +21,37 @@ pub fn spawn(world: &mut World, scene: &BuiltScene) -> Vec<Entity> {
     world.init_resource::<FrameReport>();
     world.init_resource::<SimFailure>();
     // A body is an owner of one layer, moved and logged like a patch's, and never solved.
-    let names: Vec<String> = scene.bodies.iter().map(|b| b.name.clone()).collect();
     let bodies: Vec<SharedBody> = scene
         .bodies
         .iter()
         .enumerate()
         .map(|(i, b)| {
-            let (_, mut layers, mut vertices) = spawn_patch(world, b, i as u32, None, &names);
+            let (_, mut layers, mut vertices) = spawn_patch(world, b, i as u32, Role::Body);
             (layers.remove(0), vertices.remove(0))
         })
         .collect();
     let first = bodies.len() as u32;
     let patches = scene.patches.iter().enumerate();
-    patches.map(|(i, p)| spawn_patch(world, p, first + i as u32, p.body.map(|b| &bodies[b]), &names).0).collect()
+    patches.map(|(i, p)| spawn_patch(world, p, first + i as u32, Role::Patch(p.body.map(|b| &bodies[b]))).0).collect()
 }
 
 /// A spawned body's layer and the entities of its mesh vertices.
 type SharedBody = (Entity, Vec<Entity>);
 
-/// Spawns a patch (with `body`, the spawned body that is its layer 0) or, when its name is one
-/// of `scene_bodies` (names are unique across both), a body: no solver. Returns the patch, its
-/// layers and their vertices.
-fn spawn_patch(
-    world: &mut World,
-    p: &BuiltPatch,
-    index: u32,
-    body: Option<&SharedBody>,
-    scene_bodies: &[String],
-) -> (Entity, Vec<Entity>, Vec<Vec<Entity>>) {
+/// What `spawn_patch` spawns: a shared body (no solver), or a patch, on the spawned body that is
+/// its layer 0 if it has one.
+enum Role<'a> {
+    Body,
+    Patch(Option<&'a SharedBody>),
+}
+
+/// Spawns a patch or a body (`Role`). Returns the patch, its layers and their vertices.
+fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32, role: Role) -> (Entity, Vec<Entity>, Vec<Vec<Entity>>) {
     let patch = world.spawn(Patch { name: p.name.clone(), index }).id();
-    let solved = !scene_bodies.contains(&p.name);
+    let (solved, body) = match role {
+        Role::Body => (false, None),
+        Role::Patch(body) => (true, body),
+    };
     if solved {
         world.entity_mut(patch).insert(p.solver.clone());
     }
