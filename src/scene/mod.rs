@@ -20,4 +20,5 @@ pub mod targets;
 pub use build::{load, load_str};
 pub use built::BuiltScene;
 pub use error::SceneError;
+pub use meshes::MAX_GENERATED_VERTICES;
 pub use spawn::spawn;

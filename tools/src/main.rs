@@ -279,6 +279,12 @@ fn asset_hand(out: &Path, name: &str, finger: &[u32], arm: &[u32]) -> ExitCode {
         eprintln!("error: --finger-cells and --arm-cells take two numbers, around,along, each at least 3");
         return ExitCode::from(2);
     }
+    let vertices = |c: &[u32]| c[0] as u64 * (c[1] as u64 + 1);
+    let limit = skinsim::scene::MAX_GENERATED_VERTICES;
+    if 2 * vertices(finger) + vertices(arm) > limit {
+        eprintln!("error: --finger-cells and --arm-cells would make more than {limit} vertices");
+        return ExitCode::from(2);
+    }
     if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
         eprintln!("error: --name \"{name}\" must be a plain file name");
         return ExitCode::from(2);

@@ -204,6 +204,13 @@ fn command_line_values_out_of_range_exit_2() {
     refused(&bake(&["--frames", "1", "--layer", "nosuch"]), &["nosuch", "film"]);
     refused(&bake(&["--frames", "1", "--blend", "5"]), &["--blend"]);
     refused(&bake(&["--weights", "NaN"]), &["--weights"]);
+    refused(&bake(&["--frames", "1", "--layout", "asset"]), &["--layout asset", "no patch on a body"]);
+    let asset =
+        |extra: &[&str]| skinsim().args(["asset", "hand", "--out"]).arg(d.join("assets")).args(extra).output().unwrap();
+    refused(&asset(&["--finger-cells", "100000,100000"]), &["more than 10000000 vertices"]);
+    refused(&asset(&["--arm-cells", "5"]), &["two numbers"]);
+    refused(&asset(&["--name", "../escape"]), &["plain file name"]);
+    assert!(!d.join("assets").exists(), "nothing written");
 }
 
 #[test]
