@@ -81,32 +81,22 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
     }
     let mut frames = req.frames.clone();
     if !req.weights.is_empty() {
-        let blend = scene
-            .patches
-            .iter()
-            .chain(&scene.bodies)
-            .flat_map(|p| &p.drivers)
-            .find_map(|d| match d {
-                BuiltDriver::BlendShape { targets, interpolation, .. } => Some((targets[0].1.clone(), *interpolation)),
-                _ => None,
-            })
-            .ok_or("--weights needs a scene with a BlendShape driver")?;
+        let blend = first_driver(scene, |d| match d {
+            BuiltDriver::BlendShape { targets, interpolation, .. } => Some((targets[0].1.clone(), *interpolation)),
+            _ => None,
+        })
+        .ok_or("--weights needs a scene with a BlendShape driver")?;
         let keys = Keyframes(blend.0);
         for &w in &req.weights {
             frames.push(closest_frame(scene.scene.frames, w, |f| keys.at(f, blend.1)));
         }
     }
     if !req.angles.is_empty() {
-        let keys = scene
-            .patches
-            .iter()
-            .chain(&scene.bodies)
-            .flat_map(|p| &p.drivers)
-            .find_map(|d| match d {
-                BuiltDriver::Joint { keyframes, .. } => Some(Keyframes(keyframes.clone())),
-                _ => None,
-            })
-            .ok_or("--angles needs a scene with a Joint driver")?;
+        let keys = first_driver(scene, |d| match d {
+            BuiltDriver::Joint { keyframes, .. } => Some(Keyframes(keyframes.clone())),
+            _ => None,
+        })
+        .ok_or("--angles needs a scene with a Joint driver")?;
         for &a in &req.angles {
             frames.push(closest_frame(scene.scene.frames, a.to_radians(), |f| keys.at(f, Interpolation::Linear)));
         }
@@ -123,6 +113,11 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
         return Err("--layout asset bakes into a shared body's UVs: the scene has no patch on a body".into());
     }
     Ok(frames)
+}
+
+/// The first driver of the patches', then the shared bodies', for which `pick` gives a value.
+fn first_driver<T>(scene: &BuiltScene, pick: impl Fn(&BuiltDriver) -> Option<T>) -> Option<T> {
+    scene.patches.iter().chain(&scene.bodies).flat_map(|p| &p.drivers).find_map(pick)
 }
 
 /// The first frame in 0..=last where `value` comes closest to `target`.

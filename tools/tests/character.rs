@@ -61,7 +61,6 @@ fn the_finger_wrinkles_over_its_knuckle_at_the_kernel_wavelength() {
 /// normals, and the same for each key map alone.
 #[test]
 fn a_map_blended_by_joint_angle_matches_the_simulated_pose_better_than_either_key() {
-    use skinsim::mesh::wrinkle_map::{blend, decode};
     use skinsim_tools::bake::{bake, BakeRequest};
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/finger_quick.ron");
     let built = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -78,14 +77,8 @@ fn a_map_blended_by_joint_angle_matches_the_simulated_pose_better_than_either_ke
     let baked = bake(&built, &req, &out, None).unwrap().maps;
     assert_eq!(baked.iter().map(|b| b.frame).collect::<Vec<_>>(), vec![4, 6, 8], "the frames at those angles");
     let maps: Vec<image::RgbImage> = baked.iter().map(|b| image::open(&b.path).unwrap().to_rgb8()).collect();
-    let mean_angle = |a: &image::RgbImage, b: &image::RgbImage| {
-        let sum: f64 =
-            a.pixels().zip(b.pixels()).map(|(p, q)| decode(*p).dot(decode(*q)).clamp(-1.0, 1.0).acos()).sum();
-        (sum / (a.width() * a.height()) as f64).to_degrees()
-    };
-    let blended = blend(&maps[0], &maps[2], 0.5);
-    let (with_blend, key_16, key_32) =
-        (mean_angle(&blended, &maps[1]), mean_angle(&maps[0], &maps[1]), mean_angle(&maps[2], &maps[1]));
+    let every: Vec<(u32, u32)> = (0..256).flat_map(|y| (0..256).map(move |x| (x, y))).collect();
+    let (with_blend, key_16, key_32) = blend_against_keys(&maps, &every);
     println!(
         "finger maps against the 24-degree frame: blend of 16 and 32 degrees {with_blend:.2} deg, \
          16-degree map {key_16:.2} deg, 32-degree map {key_32:.2} deg (mean angle between normals)"
@@ -93,6 +86,19 @@ fn a_map_blended_by_joint_angle_matches_the_simulated_pose_better_than_either_ke
     assert!(with_blend < key_16.min(key_32), "blending helps");
     assert!(with_blend < BLEND_BOUND_DEGREES, "{with_blend}");
     let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Maps baked at three angles against the middle one, over `pixels`: the mean angle between the
+/// normals (degrees) of the half-and-half blend of the outer two, and of each outer one alone.
+fn blend_against_keys(maps: &[image::RgbImage], pixels: &[(u32, u32)]) -> (f64, f64, f64) {
+    use skinsim::mesh::wrinkle_map::{blend, decode};
+    let mean_angle = |a: &image::RgbImage, b: &image::RgbImage| {
+        let angle =
+            |&(x, y): &(u32, u32)| decode(*a.get_pixel(x, y)).dot(decode(*b.get_pixel(x, y))).clamp(-1.0, 1.0).acos();
+        (pixels.iter().map(angle).sum::<f64>() / pixels.len() as f64).to_degrees()
+    };
+    let blended = blend(&maps[0], &maps[2], 0.5);
+    (mean_angle(&blended, &maps[1]), mean_angle(&maps[0], &maps[1]), mean_angle(&maps[2], &maps[1]))
 }
 
 /// The blend's bound: measured 2.03 degrees (the key maps alone: 5.30 and 5.86), with margin.
@@ -196,7 +202,7 @@ fn the_hand_carries_two_knuckle_patches_and_a_sleeve_on_one_body() {
 /// sleeve too warns about its seam's flipped UV triangles, by face.
 #[test]
 fn asset_maps_in_tangent_space_blend_by_angle_and_name_bad_uv_triangles() {
-    use skinsim::mesh::wrinkle_map::{blend, decode, encode};
+    use skinsim::mesh::wrinkle_map::encode;
     use skinsim_tools::bake::{bake, BakeRequest, MapLayout};
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/hand_quick.ron");
     let built = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -228,16 +234,7 @@ fn asset_maps_in_tangent_space_blend_by_angle_and_name_bad_uv_triangles() {
         .filter(|&(x, y)| v_of_row(y) > 0.100 && maps.iter().any(|m| *m.get_pixel(x, y) != flat))
         .collect();
     assert!(covered.len() > 1000, "{}", covered.len());
-    let mean_angle = |a: &image::RgbImage, b: &image::RgbImage| {
-        let sum: f64 = covered
-            .iter()
-            .map(|&(x, y)| decode(*a.get_pixel(x, y)).dot(decode(*b.get_pixel(x, y))).clamp(-1.0, 1.0).acos())
-            .sum();
-        (sum / covered.len() as f64).to_degrees()
-    };
-    let blended = blend(&maps[0], &maps[2], 0.5);
-    let (with_blend, key_16, key_32) =
-        (mean_angle(&blended, &maps[1]), mean_angle(&maps[0], &maps[1]), mean_angle(&maps[2], &maps[1]));
+    let (with_blend, key_16, key_32) = blend_against_keys(&maps, &covered);
     println!(
         "hand asset maps (tangent space) against the 24-degree frame, over {} knuckle pixels: blend of 16 and 32 \
          degrees {with_blend:.2} deg, 16-degree map {key_16:.2} deg, 32-degree map {key_32:.2} deg",
