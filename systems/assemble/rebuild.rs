@@ -24,23 +24,12 @@ pub(super) fn rebuild(
     index.vertices.clear();
     index.index.clear();
     // A body under KCK18 anchors is not packed for its own patch; a shared one for kernels is.
-    let own = patch_layers.entities().iter().filter(|&&l| layers.get(l).is_ok_and(|i| !i.anchor_body));
-    let solved: Vec<Entity> = own.copied().chain(bodies.iter().copied()).collect();
-    for (i, &l) in solved.iter().enumerate() {
-        if i == solved.len() - bodies.len() {
-            index.own = index.vertices.len();
-        }
-        let Ok(LayerItemsItem { vertices: Some(verts), .. }) = layers.get(l) else { continue };
-        for &v in verts.entities() {
-            if let std::collections::hash_map::Entry::Vacant(slot) = index.index.entry(v) {
-                slot.insert(index.vertices.len() as u32);
-                index.vertices.push(v);
-            }
-        }
-    }
-    if bodies.is_empty() {
-        index.own = index.vertices.len();
-    }
+    let own: Vec<Entity> =
+        patch_layers.entities().iter().copied().filter(|&l| layers.get(l).is_ok_and(|i| !i.anchor_body)).collect();
+    pack_vertices(index, &own, layers);
+    index.own = index.vertices.len();
+    pack_vertices(index, bodies, layers);
+    let solved: Vec<Entity> = own.into_iter().chain(bodies.iter().copied()).collect();
     let n = index.vertices.len();
     let state = &mut packed.state;
     state.x = vec![DVec3::ZERO; n];
@@ -154,4 +143,17 @@ pub(super) fn rebuild(
     index.faces = face_count;
     index.tets = tet_count;
     packed.cache.invalidate();
+}
+
+/// Gives every vertex of `list`'s layers a packed index, each once, in order.
+fn pack_vertices(index: &mut PackedIndex, list: &[Entity], layers: &Query<LayerItems>) {
+    for &l in list {
+        let Ok(LayerItemsItem { vertices: Some(verts), .. }) = layers.get(l) else { continue };
+        for &v in verts.entities() {
+            if let std::collections::hash_map::Entry::Vacant(slot) = index.index.entry(v) {
+                slot.insert(index.vertices.len() as u32);
+                index.vertices.push(v);
+            }
+        }
+    }
 }
