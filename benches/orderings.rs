@@ -9,7 +9,10 @@
 //! - the KCK18 creature's shell Hessian and the H15 3D patch's (small) tet Hessian (LL^T of
 //!   the Abs-projected Hessian).
 //!
-//! `cargo bench --bench orderings` (scenes as arguments, e.g. `-- h15/patch_3d.ron`, to choose).
+//! The LL^T matrices are also factorized in f32 (the mixed-precision factor, issue 25 item 2).
+//!
+//! `cargo bench --bench orderings` (scenes as arguments, e.g. `-- h15/patch_3d.ron`, to choose;
+//! `--at-rest` takes the matrix before any Newton step, for patches too large to solve a frame).
 
 use std::time::Instant;
 
@@ -37,6 +40,7 @@ struct Matrix {
 }
 
 fn main() {
+    let at_rest = std::env::args().any(|a| a == "--at-rest");
     let args: Vec<String> = std::env::args().skip(1).filter(|a| a.ends_with(".ron")).collect();
     let scenes = if args.is_empty() {
         vec![
@@ -47,25 +51,32 @@ fn main() {
     } else {
         args
     };
-    println!("| matrix | n | ordering | nnz(L) | flops | symbolic (s) | factorization (ms) |");
-    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    println!("| matrix | n | ordering | nnz(L) | flops | symbolic (s) | factorization (ms) | f32 (ms) |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
     for scene in scenes {
-        let m = matrix(&scene);
+        let m = matrix(&scene, at_rest);
         let metis = metis_order(&m);
         for (label, order) in [("ours (geometric ND)", Some(m.ours.clone())), ("AMD", None), ("METIS ND", Some(metis))]
         {
             let (symbolic, symbolic_s) = analyze(&m, order.as_deref());
             let (nnz, flops) = fill(&symbolic);
             let ms = factorize_ms(&m, &symbolic);
-            println!("| {} | {} | {label} | {nnz} | {flops:.3e} | {symbolic_s:.2} | {ms:.0} |", m.name, m.n);
+            let f32_ms = if m.kkt { "-".to_string() } else { format!("{:.0}", factorize_f32_ms(&m, &symbolic)) };
+            println!("| {} | {} | {label} | {nnz} | {flops:.3e} | {symbolic_s:.2} | {ms:.0} | {f32_ms} |", m.name, m.n);
         }
     }
 }
 
-/// The scene's first-frame matrix (after one frame: buckled where it buckles).
-fn matrix(scene: &str) -> Matrix {
+/// The scene's first-frame matrix (after one frame: buckled where it buckles; `at_rest`: after
+/// one Newton step, without the stability check).
+fn matrix(scene: &str, at_rest: bool) -> Matrix {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(scene);
-    let built = skinsim::scene::load(&path).expect("a valid scene");
+    let mut built = skinsim::scene::load(&path).expect("a valid scene");
+    if at_rest {
+        for patch in &mut built.patches {
+            (patch.solver.max_iterations, patch.solver.stability_check) = (1, false);
+        }
+    }
     let mut sim = skinsim_systems::Simulation::new(&built);
     sim.step();
     let mut q = sim.world.query::<&PackedPatch>();
@@ -147,9 +158,41 @@ fn fill(symbolic: &SymbolicCholesky<u32>) -> (usize, f64) {
     (symbolic.len_val(), skinsim::solve::linear::factor_flops(symbolic))
 }
 
+/// Sequential below the solver's threshold, parallel above (as `CholeskySolver` factorizes).
+fn parallelism(m: &Matrix) -> Par {
+    if m.n >= skinsim::solve::linear::PARALLEL_MIN_DOFS {
+        Par::rayon(0)
+    } else {
+        Par::Seq
+    }
+}
+
+/// Median of three numeric LL^T factorizations in f32 (ms).
+fn factorize_f32_ms(m: &Matrix, symbolic: &SymbolicCholesky<u32>) -> f64 {
+    let par = parallelism(m);
+    let mut mem = MemBuffer::new(symbolic.factorize_numeric_llt_scratch::<f32>(par, Default::default()));
+    let mut l = vec![0.0f32; symbolic.len_val()];
+    let values: Vec<f32> = m.values.iter().map(|&v| v as f32).collect();
+    let sym = SymbolicSparseColMatRef::new_checked(m.n, m.n, &m.col_ptr, None, &m.row_idx);
+    let a = SparseColMatRef::new(sym, &values[..]);
+    let mut times: Vec<f64> = (0..3)
+        .map(|_| {
+            let clock = Instant::now();
+            let stack = MemStack::new(&mut mem);
+            let ok = symbolic
+                .factorize_numeric_llt(&mut l, a, Side::Lower, Default::default(), par, stack, Default::default())
+                .is_ok();
+            assert!(ok, "{}: f32 numeric factorization", m.name);
+            clock.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[1]
+}
+
 /// Median of three numeric factorizations (ms): LDL^T for a KKT matrix, LL^T otherwise.
 fn factorize_ms(m: &Matrix, symbolic: &SymbolicCholesky<u32>) -> f64 {
-    let par = Par::Seq;
+    let par = parallelism(m);
     let req = StackReq::any_of(&[
         symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
         symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),

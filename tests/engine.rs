@@ -343,6 +343,31 @@ fn krylov_newton_reaches_the_direct_solution_with_fewer_factorizations() {
     assert!(fb < fa, "Krylov {fb} vs direct {fa}");
 }
 
+/// Issue 25 item 2: mixed precision (the factor in f32, each step refined in f64 by CG) reaches
+/// the f64 solve's equilibrium on a squeezed volume slab, and refines every step.
+#[test]
+fn mixed_precision_newton_reaches_the_f64_solution() {
+    let text = std::fs::read_to_string(scene_path("examples/volume_slab.ron")).unwrap();
+    let f32_text = text.replace("solver: (projection: Adaptive)", "solver: (projection: Adaptive, precision: F32)");
+    assert_ne!(text, f32_text);
+    let run = |text: &str| {
+        let mut sim = Simulation::new(&load_str(text, &scene_path("examples/volume_slab.ron")).unwrap());
+        let mut cg = 0;
+        for _ in 0..5 {
+            let s = sim.step();
+            assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+            cg += s.patches[0].cg_iterations;
+        }
+        (sim.layer_positions("slab", "dermis"), cg)
+    };
+    let ((a, cg64), (b, cg32)) = (run(&text), run(&f32_text));
+    let worst = a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0f64, f64::max);
+    println!("largest position difference {worst:.3e} m; CG refinements {cg32}");
+    assert!(worst < 1e-6 * 0.01, "the same equilibrium: {worst} m");
+    assert_eq!(cg64, 0);
+    assert!(cg32 > 0, "every f32 step is refined");
+}
+
 /// Issue 21 item 6: LK14's velocity-based scheme (one linearized implicit-Euler step per frame,
 /// `LinearizedEuler`) is a supported mode: every frame one iteration and one factorization,
 /// reported converged, and on the ringing film (examples/dynamic_strip.ron, 40 steps of 1 ms)

@@ -12,6 +12,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 use super::pattern::Pattern;
+use super::settings::Precision;
 
 /// Below this many DOFs the factorization runs sequentially. Measured on 2 cores: a 30.7k-DOF
 /// shell (KCK18 creature) 110-135 ms sequential against 150-180 ms parallel per factorization;
@@ -27,14 +28,21 @@ pub const NESTED_DISSECTION_MIN_DOFS: usize = 20_000;
 
 pub struct CholeskySolver {
     symbolic: SymbolicCholesky<u32>,
+    precision: Precision,
+    /// The LL^T factor in the chosen precision (the other stays empty), and the f32 copies of
+    /// the matrix and of a right-hand side (F32 only).
     l_values: Vec<f64>,
+    l32: Vec<f32>,
+    a32: Vec<f32>,
+    x32: Vec<f32>,
     mem: MemBuffer,
     par: Par,
     factored: bool,
-    /// The LDL^T of the last `inertia` call (empty until then), and the same factor with |D|:
-    /// the stability test and its eigen-solver's preconditioner.
+    /// The LDL^T of the last `inertia` call (empty until then): the stability test's. Its
+    /// negative pivots (positions in `ldl`) are flipped in place while it serves as the |D|
+    /// preconditioner, rather than kept in a second copy of the factor.
     ldl: Vec<f64>,
-    ldl_abs: Vec<f64>,
+    negative_pivots: Vec<usize>,
     pivots: Vec<usize>,
     /// Numeric factorizations so far (LL^T and LDL^T).
     pub factorizations: u64,
@@ -68,41 +76,82 @@ impl CholeskySolver {
             factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
                 .expect("symbolic Cholesky of a valid pattern")
         };
+        // (f32's scratch is never larger than f64's)
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
             symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
-        let l_values = vec![0.0; symbolic.len_val()];
         CholeskySolver {
             symbolic,
-            l_values,
+            precision: Precision::F64,
+            l_values: Vec::new(),
+            l32: Vec::new(),
+            a32: Vec::new(),
+            x32: Vec::new(),
             mem: MemBuffer::new(req),
             par,
             factored: false,
             ldl: Vec::new(),
-            ldl_abs: Vec::new(),
+            negative_pivots: Vec::new(),
             pivots: Vec::new(),
             factorizations: 0,
         }
     }
 
-    /// Numeric factorization of the pattern's matrix with `values`.
+    /// The LL^T factor's arithmetic from now on (a change forgets the last factor).
+    pub fn set_precision(&mut self, precision: Precision) {
+        if precision != self.precision {
+            self.precision = precision;
+            self.factored = false;
+            self.l_values = Vec::new();
+            self.l32 = Vec::new();
+        }
+    }
+
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    /// Numeric factorization of the pattern's matrix with `values` (rounded to f32 first in
+    /// mixed precision).
     pub fn factorize(&mut self, p: &Pattern, values: &[f64]) -> Result<(), NotPositiveDefinite> {
         let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
-        let a = SparseColMatRef::new(sym, values);
         let stack = MemStack::new(&mut self.mem);
         self.factorizations += 1;
-        let res = self.symbolic.factorize_numeric_llt(
-            &mut self.l_values,
-            a,
-            Side::Lower,
-            LltRegularization::default(),
-            self.par,
-            stack,
-            Default::default(),
-        );
-        self.factored = res.is_ok() && self.l_values.iter().all(|v| v.is_finite());
+        let len = self.symbolic.len_val();
+        self.factored = match self.precision {
+            Precision::F64 => {
+                self.l_values.resize(len, 0.0);
+                let a = SparseColMatRef::new(sym, values);
+                let res = self.symbolic.factorize_numeric_llt(
+                    &mut self.l_values,
+                    a,
+                    Side::Lower,
+                    LltRegularization::default(),
+                    self.par,
+                    stack,
+                    Default::default(),
+                );
+                res.is_ok() && self.l_values.iter().all(|v| v.is_finite())
+            }
+            Precision::F32 => {
+                self.a32.clear();
+                self.a32.extend(values.iter().map(|&v| v as f32));
+                self.l32.resize(len, 0.0);
+                let a = SparseColMatRef::new(sym, &self.a32[..]);
+                let res = self.symbolic.factorize_numeric_llt(
+                    &mut self.l32,
+                    a,
+                    Side::Lower,
+                    LltRegularization::default(),
+                    self.par,
+                    stack,
+                    Default::default(),
+                );
+                res.is_ok() && self.l32.iter().all(|v| v.is_finite())
+            }
+        };
         if self.factored {
             Ok(())
         } else {
@@ -110,20 +159,34 @@ impl CholeskySolver {
         }
     }
 
-    /// Solves A x = rhs in place with the last factorization.
+    /// Solves A x = rhs in place with the last factorization (in its precision: in f32 the
+    /// solution carries the factor's round-off; `newton` refines it).
     pub fn solve(&mut self, rhs: &mut [f64]) {
         assert!(self.factored, "solve after a successful factorization");
         let n = rhs.len();
-        let llt = LltRef::new(&self.symbolic, &self.l_values);
         let stack = MemStack::new(&mut self.mem);
-        let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
-        llt.solve_in_place_with_conj(Conj::No, mat, self.par, stack);
+        match self.precision {
+            Precision::F64 => {
+                let llt = LltRef::new(&self.symbolic, &self.l_values);
+                let mat = MatMut::from_column_major_slice_mut(rhs, n, 1);
+                llt.solve_in_place_with_conj(Conj::No, mat, self.par, stack);
+            }
+            Precision::F32 => {
+                self.x32.clear();
+                self.x32.extend(rhs.iter().map(|&v| v as f32));
+                let llt = LltRef::new(&self.symbolic, &self.l32[..]);
+                let mat = MatMut::from_column_major_slice_mut(&mut self.x32[..], n, 1);
+                llt.solve_in_place_with_conj(Conj::No, mat, self.par, stack);
+                rhs.iter_mut().zip(&self.x32).for_each(|(r, &v)| *r = f64::from(v));
+            }
+        }
     }
 
     /// Solves A X = B in place for every column of B with the last factorization (one blocked
     /// pass over the factor instead of one per column).
     pub fn solve_columns(&mut self, rhs: MatMut<'_, f64>) {
         assert!(self.factored, "solve after a successful factorization");
+        assert!(self.precision == Precision::F64, "blocked solves are f64 only (the KKT Schur path)");
         let k = rhs.ncols();
         let req = self.symbolic.solve_in_place_scratch::<f64>(k, self.par);
         let mut mem = MemBuffer::new(req);
@@ -155,16 +218,16 @@ impl CholeskySolver {
         if self.pivots.is_empty() {
             self.pivots = pivot_positions(&self.symbolic);
         }
-        self.ldl_abs.clone_from(&self.ldl);
-        let mut negative = 0;
+        self.negative_pivots.clear();
         for &k in &self.pivots {
             if self.ldl[k] == 0.0 {
                 return None;
             }
-            negative += usize::from(self.ldl[k] < 0.0);
-            self.ldl_abs[k] = self.ldl[k].abs();
+            if self.ldl[k] < 0.0 {
+                self.negative_pivots.push(k);
+            }
         }
-        Some(negative)
+        Some(self.negative_pivots.len())
     }
 
     /// Solves A x = rhs in place with the last `inertia` factor (A's LDL^T).
@@ -177,8 +240,11 @@ impl CholeskySolver {
     /// positive definite approximation of |H|^-1 (the eigen-solver's preconditioner; for a
     /// definite H it is H^-1 itself).
     pub fn solve_abs(&mut self, rhs: &mut [f64]) {
-        assert!(!self.ldl_abs.is_empty(), "solve_abs after a successful inertia");
-        ldlt_solve(&self.symbolic, &self.ldl_abs, self.par, &mut self.mem, rhs);
+        assert!(!self.ldl.is_empty(), "solve_abs after a successful inertia");
+        let flip = |ldl: &mut [f64], at: &[usize]| at.iter().for_each(|&k| ldl[k] = -ldl[k]);
+        flip(&mut self.ldl, &self.negative_pivots);
+        ldlt_solve(&self.symbolic, &self.ldl, self.par, &mut self.mem, rhs);
+        flip(&mut self.ldl, &self.negative_pivots);
     }
 
     /// Whether the last factorization succeeded (its factor can precondition CG).
@@ -187,7 +253,7 @@ impl CholeskySolver {
     }
 
     pub fn factor_nnz(&self) -> usize {
-        self.l_values.len()
+        self.symbolic.len_val()
     }
 
     /// Whether faer chose the supernodal (blocked, parallel) factorization.

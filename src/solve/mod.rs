@@ -24,4 +24,4 @@ pub use elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, Spri
 pub use error::SolveError;
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};
 pub use packed::{PackedPatch, PackedState, SolverCache};
-pub use settings::{Globalization, KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};
+pub use settings::{Globalization, KktMethod, LinearSolver, Precision, SolveMode, SolverSettings, StabilityTest};

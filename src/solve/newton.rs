@@ -10,7 +10,7 @@ use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::progress::{Progress, ADAPTIVE_SWITCH};
-use super::settings::{LinearSolver, SolveMode, SolverSettings, StabilityTest};
+use super::settings::{LinearSolver, Precision, SolveMode, SolverSettings, StabilityTest};
 use super::stability::{self, Verdict};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
@@ -22,6 +22,10 @@ const MAX_HALVINGS: u32 = 40;
 const ROUND_OFF: f64 = 1e-13;
 /// Saddles left per frame at most.
 const MAX_ESCAPES: u32 = 4;
+/// Mixed precision: a Newton step is refined until |H dx + g| <= REFINED |g|, with at most
+/// MAX_REFINEMENTS conjugate-gradient iterations (an f64 factor solves to ~1e-12).
+const REFINED: f64 = 1e-10;
+const MAX_REFINEMENTS: u32 = 20;
 
 /// What happened in one frame's solve.
 #[derive(Clone, Debug, Default)]
@@ -47,7 +51,8 @@ pub struct FrameOutcome {
     /// The merit after each accepted trust-region step (empty with the line search).
     pub merits: Vec<f64>,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
-    /// factorization and triangular solves, line-search energy evaluations.
+    /// factorization and triangular solves (with their f32 refinement), line-search energy
+    /// evaluations, the stability test.
     pub counters: SolveCounters,
 }
 
@@ -57,6 +62,8 @@ pub struct SolveCounters {
     pub assemble_ms: f64,
     pub factorize_ms: f64,
     pub line_search_ms: f64,
+    /// The stability test at converged points: its factorizations, eigen-solve and escape search.
+    pub stability_ms: f64,
 }
 
 /// The implicit-Euler predictor x_n + h v_n (prescribed coordinates stay); empty when quasistatic.
@@ -180,6 +187,7 @@ pub fn solve_frame(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64)
         packed.cache.system = Some((pattern, chol));
         return result;
     }
+    chol.set_precision(settings.precision);
     let before = chol.factorizations;
     let result = newton(packed, &pattern, &mut chol, settings, dt).map(|mut o| {
         o.factorizations = (chol.factorizations - before) as u32;
@@ -240,6 +248,7 @@ fn newton(
                 }
                 let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
                 let settle = out.escapes > 0 && out.iterations < settings.max_iterations;
+                let clock = std::time::Instant::now();
                 let left = match settings.stability_test {
                     StabilityTest::Inertia => {
                         leave_unstable(packed, pattern, chol, &values, &grad, phi, energy_scale, settle, &energy_at)
@@ -249,6 +258,7 @@ fn newton(
                             .map_or(Leave::Stay, Leave::Escape)
                     }
                 };
+                out.counters.stability_ms += clock.elapsed().as_secs_f64() * 1e3;
                 match left {
                     Leave::Stay => {}
                     Leave::Escape(x) => {
@@ -308,6 +318,7 @@ fn newton(
         let clock = std::time::Instant::now();
         let factorized = chol.factorize(pattern, &values);
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+        let mut factorized_matrix = &values;
         if factorized.is_err() {
             if filter == Filter::Exact && settings.projection == Projection::Adaptive {
                 progress.projecting = true; // H15: fall back to the projected Hessian
@@ -317,12 +328,26 @@ fn newton(
             if factorize_shifted(chol, pattern, &values, &mut scratch, 1e-8, 100.0, 8).is_none() {
                 return Err(SolveError::Unfactorizable);
             }
-        }
-        for (d, g) in dx.iter_mut().zip(&grad) {
-            *d = -g;
+            factorized_matrix = &scratch;
         }
         let clock = std::time::Instant::now();
-        chol.solve(&mut dx);
+        if chol.precision() == Precision::F32 {
+            // Mixed precision: the f32 factor's solve refined in f64 by CG on the matrix it
+            // factorizes (one pass of CG from the f32 solve is the first iterate).
+            let b: Vec<f64> = grad.iter().map(|g| -g).collect();
+            let refined = pcg(pattern, factorized_matrix, chol, &b, &mut dx, REFINED * gnorm, MAX_REFINEMENTS);
+            out.cg_iterations += refined.unwrap_or_else(|e| e);
+            if dx.iter().all(|&d| d == 0.0) {
+                // (CG met round-off curvature at once: the f32 solve alone)
+                dx.copy_from_slice(&b);
+                chol.solve(&mut dx);
+            }
+        } else {
+            for (d, g) in dx.iter_mut().zip(&grad) {
+                *d = -g;
+            }
+            chol.solve(&mut dx);
+        }
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
         if slope.is_nan() || slope >= 0.0 {

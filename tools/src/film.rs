@@ -8,6 +8,7 @@ use std::time::Instant;
 use skinsim::physics::cell::VolumeElement;
 use skinsim::physics::ConstitutiveModel;
 use skinsim::scene::{load_str, SceneError};
+use skinsim::solve::Precision;
 use skinsim_systems::Simulation;
 
 use crate::wrinkles::{amplitude, onset_strain, peaks, profile};
@@ -36,6 +37,8 @@ pub struct FilmSubstrate {
     pub volume_element: Option<VolumeElement>,
     /// The substrate's constitutive model.
     pub substrate_model: ConstitutiveModel,
+    /// The Newton factor's arithmetic (mixed precision: `F32`).
+    pub precision: Precision,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -148,6 +151,7 @@ impl FilmSubstrate {
             max_strain: 3.0,
             volume_element: None,
             substrate_model: ConstitutiveModel::BazantHencky,
+            precision: Precision::F64,
         }
     }
 
@@ -191,7 +195,7 @@ impl FilmSubstrate {
             r#"Scene(name: "film_substrate", units: (length: Millimetre, stress: MegaPascal), frames: {frames},
     output: (stats: false, rerun: false),
     patches: [Patch(name: "bilayer",
-        solver: (projection: Adaptive, max_iterations: 100, perturbation: (amplitude: 0.001, seed: 1)),
+        solver: (projection: Adaptive, precision: {precision:?}, max_iterations: 100, perturbation: (amplitude: 0.001, seed: 1)),
         layers: [
             Layer(name: "substrate", kind: Volume,
                 mesh: TetSlab(size: ({length}, {dx}), cells: ({cells}, 1), depth: {depth}, elements: {de}, grading: {grading}),
@@ -212,6 +216,7 @@ impl FilmSubstrate {
             de = self.depth_elements,
             grading = self.grading,
             model = self.substrate_model,
+            precision = self.precision,
             element = self.volume_element.map_or(String::new(), |v| format!(", volume_element: {v:?}")),
         )
     }

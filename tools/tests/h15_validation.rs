@@ -10,6 +10,7 @@
 //! `cargo test --release -p skinsim-cli --test h15_validation -- --nocapture` prints the figures.
 
 use skinsim::physics::ConstitutiveModel;
+use skinsim::solve::Precision;
 use skinsim_tools::film::{FilmResult, FilmSubstrate};
 
 fn report(name: &str, r: &FilmResult) {
@@ -40,6 +41,10 @@ fn case_7(ratio: f64, substrate_poisson: f64) {
     setup.substrate_poisson = substrate_poisson;
     let r = setup.run().unwrap();
     report(&format!("case 7, Ebar_f / Ebar_s = {ratio}, nu_s = {substrate_poisson}"), &r);
+    assert_case_7(&r);
+}
+
+fn assert_case_7(r: &FilmResult) {
     assert!(r.all_converged);
     assert!(r.wavelength_error().abs() < 0.03, "wavelength {:+.3}", r.wavelength_error());
     assert!(r.onset_error().abs() < 0.05, "onset {:+.3}", r.onset_error());
@@ -57,6 +62,47 @@ fn case_7_stiffness_ratio_1000() {
 fn case_7_nearly_incompressible_substrate() {
     // nu_s = 0.495, the same mesh: the default volume element there is the cell.
     case_7(1000.0, 0.495);
+}
+
+#[test]
+fn case_7_in_mixed_precision() {
+    // Issue 25 item 2: the Newton factor in f32, each step refined in f64 (the stability test's
+    // inertia stays f64): the same tolerances.
+    let mut setup = FilmSubstrate::deep(1000.0, 8, 20, 20);
+    (setup.grading, setup.precision) = (20.0, Precision::F32);
+    let r = setup.run().unwrap();
+    report("case 7, Ebar_f / Ebar_s = 1000, mixed precision", &r);
+    assert_case_7(&r);
+}
+
+#[test]
+fn case_7_with_ten_graded_depth_elements() {
+    // Issue 25 item 3: how few substrate elements through 1.5 lambda_c still hold case 7 (graded
+    // 20:1 towards the film). Ten do (onset +3.5 %, amplitude -3.5 %); six do not (onset +9 %),
+    // and steeper grading makes a coarse substrate worse: `depth_resolution_table`.
+    let mut setup = FilmSubstrate::deep(1000.0, 8, 20, 10);
+    setup.grading = 20.0;
+    let r = setup.run().unwrap();
+    report("case 7, Ebar_f / Ebar_s = 1000, 10 depth elements", &r);
+    assert_case_7(&r);
+}
+
+/// The errors of cases 7 and 8 (H = 0.5 lambda_inf) against the substrate's depth elements and
+/// grading (issue 25 item 3), printed:
+/// `cargo test --release -p skinsim-cli --test h15_validation -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn depth_resolution_table() {
+    for (elements, grading) in [(20, 20.0), (10, 20.0), (6, 20.0), (4, 20.0), (3, 20.0), (6, 60.0), (4, 100.0)] {
+        let mut deep = FilmSubstrate::deep(1000.0, 8, 20, elements);
+        deep.grading = grading;
+        let r = deep.run().unwrap();
+        report(&format!("case 7, {elements} depth elements graded {grading}:1, {} tets", r.tets), &r);
+        let mut rigid = FilmSubstrate::on_rigid(0.5, 0.45, 20, elements.min(10));
+        rigid.grading = grading;
+        let r = rigid.run().unwrap();
+        report(&format!("case 8, H = 0.5 lambda_inf, {} depth elements graded {grading}:1", elements.min(10)), &r);
+    }
 }
 
 #[test]

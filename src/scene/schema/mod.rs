@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::physics::Projection;
-use crate::solve::{Globalization, KktMethod, LinearSolver, SolveMode, SolverSettings, StabilityTest};
+use crate::solve::{Globalization, KktMethod, LinearSolver, Precision, SolveMode, SolverSettings, StabilityTest};
 
 mod coupling;
 mod driver;
@@ -167,6 +167,9 @@ pub struct SolverSpec {
     /// How Newton solves H dx = -g.
     #[serde(default)]
     pub linear: LinearSolver,
+    /// The Cholesky factor's arithmetic: `F64`, or `F32` (mixed precision, refined in f64).
+    #[serde(default)]
+    pub precision: Precision,
     /// How the constrained (KKT) system of a patch with kernels is solved (LK14 eq. 5.1).
     #[serde(default)]
     pub kkt: KktMethod,
@@ -192,6 +195,7 @@ impl Default for SolverSpec {
             stability_test: s.stability_test,
             globalization: s.globalization,
             linear: s.linear,
+            precision: s.precision,
             kkt: s.kkt,
         }
     }
@@ -209,6 +213,7 @@ impl SolverSpec {
             stability_test: self.stability_test,
             globalization: self.globalization,
             linear: self.linear,
+            precision: self.precision,
             kkt: self.kkt,
         }
     }
