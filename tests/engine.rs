@@ -8,7 +8,7 @@ use std::hash::{Hash, Hasher};
 
 use bevy_ecs::prelude::*;
 use common::*;
-use skinsim::model::{Position, Stage};
+use skinsim::model::{PatchReport, Position, Stage};
 use skinsim::scene::{load_str, BuiltScene};
 use skinsim_systems::log::{ObjExport, RerunSink};
 use skinsim_systems::log_read::RecordingIndex;
@@ -319,25 +319,37 @@ fn an_implicit_euler_step_lags_the_driven_edges() {
     assert!(quarter.abs() < 1e-3 * 0.0025, "a quarter width in moved {quarter} m");
 }
 
+/// Runs `frames` frames of a one-patch scene, each asserted converged: the layer's final
+/// positions, and `count` of the patch's reports summed over the frames.
+fn converged_run(
+    scene: &BuiltScene,
+    frames: usize,
+    (patch, layer): (&str, &str),
+    count: impl Fn(&PatchReport) -> u32,
+) -> (Vec<glam::DVec3>, u32) {
+    let mut sim = Simulation::new(scene);
+    let mut total = 0;
+    for _ in 0..frames {
+        let s = sim.step();
+        assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+        total += count(&s.patches[0]);
+    }
+    (sim.layer_positions(patch, layer), total)
+}
+
+fn largest_difference(a: &[glam::DVec3], b: &[glam::DVec3]) -> f64 {
+    a.iter().zip(b).map(|(p, q)| (*p - *q).length()).fold(0.0f64, f64::max)
+}
+
 #[test]
 fn krylov_newton_reaches_the_direct_solution_with_fewer_factorizations() {
     let direct = load("strip_wrinkles.ron");
     let text = std::fs::read_to_string(scene_path("strip_wrinkles.ron")).unwrap();
     let text = text.replace("max_iterations: 60,", "max_iterations: 60, linear: Krylov(max_iterations: 30),");
     let krylov = load_str(&text, &scene_path("strip_wrinkles.ron")).unwrap();
-    let run = |scene: &BuiltScene| {
-        let mut sim = Simulation::new(scene);
-        let mut factorizations = 0;
-        for _ in 0..12 {
-            let s = sim.step();
-            assert!(s.patches[0].converged, "{:?}", s.patches[0]);
-            factorizations += s.patches[0].factorizations;
-        }
-        (sim.layer_positions("strip", "film"), factorizations)
-    };
-    let (a, fa) = run(&direct);
-    let (b, fb) = run(&krylov);
-    let worst = a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0f64, f64::max);
+    let run = |scene: &BuiltScene| converged_run(scene, 12, ("strip", "film"), |p| p.factorizations);
+    let ((a, fa), (b, fb)) = (run(&direct), run(&krylov));
+    let worst = largest_difference(&a, &b);
     println!("factorizations: direct {fa}, Krylov {fb}; largest position difference {worst:.3e} m");
     assert!(worst < 1e-6 * 0.04, "the same equilibrium: {worst} m");
     assert!(fb < fa, "Krylov {fb} vs direct {fa}");
@@ -351,17 +363,11 @@ fn mixed_precision_newton_reaches_the_f64_solution() {
     let f32_text = text.replace("solver: (projection: Adaptive)", "solver: (projection: Adaptive, precision: F32)");
     assert_ne!(text, f32_text);
     let run = |text: &str| {
-        let mut sim = Simulation::new(&load_str(text, &scene_path("examples/volume_slab.ron")).unwrap());
-        let mut cg = 0;
-        for _ in 0..5 {
-            let s = sim.step();
-            assert!(s.patches[0].converged, "{:?}", s.patches[0]);
-            cg += s.patches[0].cg_iterations;
-        }
-        (sim.layer_positions("slab", "dermis"), cg)
+        let scene = load_str(text, &scene_path("examples/volume_slab.ron")).unwrap();
+        converged_run(&scene, 5, ("slab", "dermis"), |p| p.cg_iterations)
     };
     let ((a, cg64), (b, cg32)) = (run(&text), run(&f32_text));
-    let worst = a.iter().zip(&b).map(|(p, q)| (*p - *q).length()).fold(0.0f64, f64::max);
+    let worst = largest_difference(&a, &b);
     println!("largest position difference {worst:.3e} m; CG refinements {cg32}");
     assert!(worst < 1e-6 * 0.01, "the same equilibrium: {worst} m");
     assert_eq!(cg64, 0);
