@@ -123,33 +123,13 @@ impl CholeskySolver {
         self.factored = match self.precision {
             Precision::F64 => {
                 self.l_values.resize(len, 0.0);
-                let a = SparseColMatRef::new(sym, values);
-                let res = self.symbolic.factorize_numeric_llt(
-                    &mut self.l_values,
-                    a,
-                    Side::Lower,
-                    LltRegularization::default(),
-                    self.par,
-                    stack,
-                    Default::default(),
-                );
-                res.is_ok() && self.l_values.iter().all(|v| v.is_finite())
+                llt_into(&self.symbolic, &mut self.l_values, SparseColMatRef::new(sym, values), self.par, stack)
             }
             Precision::F32 => {
                 self.a32.clear();
                 self.a32.extend(values.iter().map(|&v| v as f32));
                 self.l32.resize(len, 0.0);
-                let a = SparseColMatRef::new(sym, &self.a32[..]);
-                let res = self.symbolic.factorize_numeric_llt(
-                    &mut self.l32,
-                    a,
-                    Side::Lower,
-                    LltRegularization::default(),
-                    self.par,
-                    stack,
-                    Default::default(),
-                );
-                res.is_ok() && self.l32.iter().all(|v| v.is_finite())
+                llt_into(&self.symbolic, &mut self.l32, SparseColMatRef::new(sym, &self.a32[..]), self.par, stack)
             }
         };
         if self.factored {
@@ -260,6 +240,19 @@ impl CholeskySolver {
     pub fn is_supernodal(&self) -> bool {
         matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
     }
+}
+
+/// The LL^T of `a` into `l` (f64 or f32); whether it succeeded with a finite factor.
+fn llt_into<T: faer::traits::RealField + faer::traits::ComplexField<Real = T> + Copy + Into<f64>>(
+    symbolic: &SymbolicCholesky<u32>,
+    l: &mut [T],
+    a: SparseColMatRef<'_, u32, T>,
+    par: Par,
+    stack: &mut MemStack,
+) -> bool {
+    let res =
+        symbolic.factorize_numeric_llt(l, a, Side::Lower, LltRegularization::default(), par, stack, Default::default());
+    res.is_ok() && l.iter().all(|&v| v.into().is_finite())
 }
 
 /// Solves in place with an LDL^T factor's values on `symbolic`.
