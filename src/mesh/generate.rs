@@ -91,6 +91,35 @@ pub fn grid(size: DVec2, cells: (u32, u32), pattern: GridPattern, z: f64) -> Sur
     m
 }
 
+/// In-plane coarsening of a slab with depth (issue 25 item 3): wrinkle displacements decay like
+/// exp(-2 pi d / lambda) below the surface (H15 4.1), so deep planes need fewer vertices. Every
+/// `every` below z = `from`, the grid halves along each axis whose cell count is even.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coarsening {
+    pub every: f64,
+    pub from: f64,
+}
+
+impl Coarsening {
+    /// The grid of a vertex plane at height z, for the finest grid `cells`.
+    pub fn cells_at(&self, cells: (u32, u32), z: f64) -> (u32, u32) {
+        let level = ((self.from - z) / self.every + 1e-6).floor().max(0.0) as u32;
+        (0..level).fold(cells, |c, _| halved(c))
+    }
+}
+
+fn halved(c: (u32, u32)) -> (u32, u32) {
+    let half = |n: u32| if n % 2 == 0 { n / 2 } else { n };
+    (half(c.0), half(c.1))
+}
+
+/// Where each vertex plane of a slab lies in its mesh, bottom to top: its first vertex and grid.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SlabPlanes {
+    pub first: Vec<usize>,
+    pub cells: Vec<(u32, u32)>,
+}
+
 /// A slab of tetrahedra over [0, size.x] x [0, size.y], from z = top - sum(depths) to z = top.
 /// `levels` lists, bottom to top, each layer's (depth, elements through it, grading): element
 /// thicknesses grow geometrically from the layer's top down so that the bottom one is `grading`
@@ -98,9 +127,17 @@ pub fn grid(size: DVec2, cells: (u32, u32), pattern: GridPattern, z: f64) -> Sur
 /// pair of triangles; each triangular prism is split into three tetrahedra with the diagonal
 /// rule "lower-numbered bottom vertex to higher-numbered top vertex", which makes neighbouring
 /// prisms conform. Each grid cell of a level is one hexahedral cell of six tetrahedra
-/// (`TetMesh::cells`). Returns the mesh and, per tet, the index of its layer.
-pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f64)]) -> (TetMesh, Vec<u32>) {
-    let (nx, ny) = (cells.0 as usize, cells.1 as usize);
+/// (`TetMesh::cells`). With `coarsen`, a vertex plane's grid is `Coarsening::cells_at` its
+/// height; an element whose bottom grid is coarser is a transition cell (`transition_cell`).
+/// Returns the mesh, per tet the index of its layer, and the vertex planes; an error when two
+/// neighbouring planes' grids differ by more than one halving.
+pub fn tet_slab(
+    size: DVec2,
+    cells: (u32, u32),
+    top: f64,
+    levels: &[(f64, u32, f64)],
+    coarsen: Option<Coarsening>,
+) -> Result<(TetMesh, Vec<u32>, SlabPlanes), String> {
     let mut zs = Vec::new();
     let total: f64 = levels.iter().map(|l| l.0).sum();
     let mut z = top - total;
@@ -119,9 +156,12 @@ pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f
             layer_of_level.push(li as u32);
         }
     }
-    let plane = (nx + 1) * (ny + 1);
+    let mut planes = SlabPlanes::default();
     let mut mesh = TetMesh::default();
     for &z in &zs {
+        let (nx, ny) = coarsen.map_or(cells, |c| c.cells_at(cells, z));
+        planes.first.push(mesh.rest.len());
+        planes.cells.push((nx, ny));
         for j in 0..=ny {
             for i in 0..=nx {
                 mesh.rest.push(DVec3::new(size.x * i as f64 / nx as f64, size.y * j as f64 / ny as f64, z));
@@ -129,17 +169,43 @@ pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f
         }
     }
     let mut layer = Vec::new();
-    let id = |i: usize, j: usize| j * (nx + 1) + i;
+    let mut cell = 0u32;
     for (k, &li) in layer_of_level.iter().enumerate() {
+        let (lower, upper) = (planes.cells[k], planes.cells[k + 1]);
+        let at = |p: usize, i: usize, j: usize| (planes.first[p] + j * (planes.cells[p].0 as usize + 1) + i) as u32;
+        let (nx, ny) = (lower.0 as usize, lower.1 as usize);
+        if lower != upper {
+            if lower != halved(upper) {
+                return Err(format!(
+                    "the grid halves twice between z = {:.6} and z = {:.6}: coarsening every {:.6} is \
+                     shorter than an element there",
+                    zs[k],
+                    zs[k + 1],
+                    coarsen.map_or(0.0, |c| c.every)
+                ));
+            }
+            let f = ((upper.0 / lower.0) as usize, (upper.1 / lower.1) as usize);
+            for j in 0..ny {
+                for i in 0..nx {
+                    for tet in transition_cell(|p, i, j| at(k + p, i, j), (i, j), f) {
+                        mesh.tets.push(orient(&mesh.rest, tet));
+                        mesh.cells.push(cell);
+                        layer.push(li);
+                    }
+                    cell += 1;
+                }
+            }
+            continue;
+        }
         for j in 0..ny {
             for i in 0..nx {
+                let id = |i: usize, j: usize| j * (nx + 1) + i;
                 let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                let cell = ((k * ny + j) * nx + i) as u32;
                 for tri in [[a, b, c], [a, c, d]] {
                     let mut t = tri;
                     t.sort_unstable();
-                    let bot = |v: usize| (k * plane + v) as u32;
-                    let topv = |v: usize| ((k + 1) * plane + v) as u32;
+                    let bot = |v: usize| (planes.first[k] + v) as u32;
+                    let topv = |v: usize| (planes.first[k + 1] + v) as u32;
                     let (i0, j0, k0) = (t[0], t[1], t[2]);
                     for tet in [
                         [bot(i0), bot(j0), bot(k0), topv(k0)],
@@ -151,10 +217,41 @@ pub fn tet_slab(size: DVec2, cells: (u32, u32), top: f64, levels: &[(f64, u32, f
                         layer.push(li);
                     }
                 }
+                cell += 1;
             }
         }
     }
-    (mesh, layer)
+    Ok((mesh, layer, planes))
+}
+
+/// The tetrahedra of a transition cell: the coarse grid cell (i, j) of the lower plane under
+/// f.0 x f.1 cells of the upper plane (`at(0 | 1, i, j)`: a vertex of the lower or upper plane).
+/// The cell is convex, so coning from its lowest corner over the triangles of the faces that do
+/// not hold that corner fills it without new vertices. Each quad is cut along its
+/// (low, low)-(high, high) diagonal as the prisms are, and each side face is fanned from its
+/// lower bottom corner, so neighbouring cells and the planes above and below conform.
+fn transition_cell(
+    at: impl Fn(usize, usize, usize) -> u32,
+    (i, j): (usize, usize),
+    f: (usize, usize),
+) -> Vec<[u32; 4]> {
+    let apex = at(0, i, j);
+    let mut tris = Vec::new();
+    let (fi, fj) = (f.0 * i, f.1 * j);
+    for v in fj..fj + f.1 {
+        for u in fi..fi + f.0 {
+            let (a, b, c, d) = (at(1, u, v), at(1, u + 1, v), at(1, u + 1, v + 1), at(1, u, v + 1));
+            tris.extend([[a, b, c], [a, c, d]]);
+        }
+    }
+    // Side x = high: bottom (i + 1, j), (i + 1, j + 1); top along y.
+    let fan = |tris: &mut Vec<[u32; 3]>, lo: u32, hi: u32, tops: Vec<u32>| {
+        tris.push([lo, hi, *tops.last().unwrap()]);
+        tris.extend(tops.windows(2).rev().map(|w| [lo, w[1], w[0]]));
+    };
+    fan(&mut tris, at(0, i + 1, j), at(0, i + 1, j + 1), (fj..=fj + f.1).map(|v| at(1, fi + f.0, v)).collect());
+    fan(&mut tris, at(0, i, j + 1), at(0, i + 1, j + 1), (fi..=fi + f.0).map(|u| at(1, u, fj + f.1)).collect());
+    tris.into_iter().map(|t| [apex, t[0], t[1], t[2]]).collect()
 }
 
 fn orient(x: &[DVec3], t: [u32; 4]) -> [u32; 4] {
@@ -192,7 +289,7 @@ mod tests {
 
     #[test]
     fn slab_is_conforming_and_fills_its_volume() {
-        let (m, layer) = tet_slab(DVec2::new(2.0, 1.0), (4, 2), 0.0, &[(1.0, 2, 1.0), (0.5, 1, 1.0)]);
+        let (m, layer, _) = tet_slab(DVec2::new(2.0, 1.0), (4, 2), 0.0, &[(1.0, 2, 1.0), (0.5, 1, 1.0)], None).unwrap();
         let vol: f64 = m
             .tets
             .iter()
@@ -217,5 +314,72 @@ mod tests {
             corners.dedup();
             assert_eq!(corners.len(), 8, "cell {c}");
         }
+    }
+
+    /// Signed volume of each tet (all positive) and the total.
+    fn volumes(m: &TetMesh) -> f64 {
+        m.tets
+            .iter()
+            .map(|t| {
+                let p = |i: usize| m.rest[t[i] as usize];
+                (p(1) - p(0)).cross(p(2) - p(0)).dot(p(3) - p(0)) / 6.0
+            })
+            .inspect(|v| assert!(*v > 1e-12, "a flat or inverted tet: {v}"))
+            .sum()
+    }
+
+    #[test]
+    fn a_coarsening_slab_is_conforming_and_fills_its_volume() {
+        // 8 x 4 cells on top, halving every 0.3 below z = 0 through 1.5 deep in 5 elements (a
+        // plane on a boundary takes the coarser grid): from the top 8x4, 4x2, 2x1, then 1x1 (each
+        // axis halves while even); one cell across y (plane strain) coarsens along x alone.
+        let coarsen = Coarsening { every: 0.3, from: 0.0 };
+        for (cells, expect) in [
+            ((8, 4), vec![(1, 1), (1, 1), (1, 1), (2, 1), (4, 2), (8, 4)]),
+            ((8, 1), vec![(1, 1), (1, 1), (1, 1), (2, 1), (4, 1), (8, 1)]),
+        ] {
+            let (m, _, planes) = tet_slab(DVec2::new(2.0, 1.0), cells, 0.0, &[(1.5, 5, 1.0)], Some(coarsen)).unwrap();
+            assert_eq!(planes.cells, expect);
+            assert!((volumes(&m) - 3.0).abs() < 1e-12);
+            // Conforming: the boundary is the box's surface, each of its faces cut by the grid of
+            // the plane or planes it touches; no interior face is left unmatched.
+            let surf = surface_of_tets(&m.tets);
+            let area: f64 = surf
+                .iter()
+                .map(|f| {
+                    let p = |i: usize| m.rest[f[i] as usize];
+                    0.5 * (p(1) - p(0)).cross(p(2) - p(0)).length()
+                })
+                .sum();
+            assert!((area - 2.0 * (2.0 + 2.0 * 1.5 + 1.5)).abs() < 1e-12, "{cells:?}: boundary area {area}");
+            let on_box = |p: DVec3| {
+                p.x.abs() < 1e-12
+                    || (p.x - 2.0).abs() < 1e-12
+                    || p.y.abs() < 1e-12
+                    || (p.y - 1.0).abs() < 1e-12
+                    || p.z.abs() < 1e-12
+                    || (p.z + 1.5).abs() < 1e-12
+            };
+            let centroid = |f: &[u32; 3]| f.iter().map(|&v| m.rest[v as usize]).sum::<DVec3>() / 3.0;
+            assert!(surf.iter().all(|f| on_box(centroid(f))), "{cells:?}: an interior face is unmatched");
+        }
+    }
+
+    #[test]
+    fn without_transitions_the_coarsening_slab_is_the_plain_one() {
+        let plain = tet_slab(DVec2::new(2.0, 1.0), (4, 2), 0.0, &[(1.0, 3, 2.0)], None).unwrap();
+        let far = Coarsening { every: 10.0, from: 0.0 };
+        let coarse = tet_slab(DVec2::new(2.0, 1.0), (4, 2), 0.0, &[(1.0, 3, 2.0)], Some(far)).unwrap();
+        assert_eq!(
+            (plain.0.rest, plain.0.tets, plain.0.cells, plain.2),
+            (coarse.0.rest, coarse.0.tets, coarse.0.cells, coarse.2)
+        );
+    }
+
+    #[test]
+    fn two_halvings_across_one_element_are_refused() {
+        let steep = Coarsening { every: 0.1, from: 0.0 };
+        let e = tet_slab(DVec2::new(2.0, 1.0), (8, 4), 0.0, &[(1.0, 2, 1.0)], Some(steep)).unwrap_err();
+        assert!(e.contains("halves twice"), "{e}");
     }
 }

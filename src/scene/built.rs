@@ -95,20 +95,22 @@ impl LayerMesh {
 #[derive(Clone, Copy, Debug)]
 pub struct SlabGrid {
     pub size: DVec2,
+    /// The finest grid (the top plane's without coarsening).
     pub cells: (u32, u32),
     pub origin: DVec3,
     /// z of the top plane.
     pub top: f64,
-    /// Number of vertex planes.
-    pub planes: usize,
+    /// The top plane's grid and first vertex.
+    pub top_cells: (u32, u32),
+    pub top_first: usize,
+    /// In-plane coarsening with depth (the slab's frame, before the offset); layers stacked on
+    /// the slab share it.
+    pub coarsen: Option<crate::mesh::Coarsening>,
 }
 
 impl SlabGrid {
-    pub(super) fn plane_len(&self) -> usize {
-        (self.cells.0 as usize + 1) * (self.cells.1 as usize + 1)
-    }
-    pub(super) fn top_offset(&self) -> usize {
-        (self.planes - 1) * self.plane_len()
+    pub(super) fn top_len(&self) -> usize {
+        (self.top_cells.0 as usize + 1) * (self.top_cells.1 as usize + 1)
     }
 }
 

@@ -74,6 +74,13 @@ impl Builder {
                         return Err(self.err(format!("{at}.material.volume_element"), "only volume layers have one"))
                     }
                 };
+                if volume_element == VolumeElement::Cell && has_transition_cells(&mesh) {
+                    return Err(self.err(
+                        format!("{at}.material.volume_element"),
+                        "the cell element needs hexahedral cells, and this slab coarsens (its transition cells \
+                         are not hexahedra): set `volume_element: Tet` or drop `coarsen`",
+                    ));
+                }
                 material = Some(crate::model::Material {
                     model: m.model,
                     young,
@@ -368,4 +375,13 @@ impl Builder {
         let (lo, hi) = mesh::bounds(&uv);
         Ok(WeightMap { width, height, values, lo, hi })
     }
+}
+
+/// Whether a volume mesh has cells other than the six-tet hexahedra (a coarsening slab's
+/// transition cells).
+fn has_transition_cells(mesh: &LayerMesh) -> bool {
+    let LayerMesh::Volume(m) = mesh else { return false };
+    let mut count = HashMap::new();
+    m.cells.iter().for_each(|&c| *count.entry(c).or_insert(0u32) += 1);
+    count.values().any(|&n| n != 6)
 }

@@ -60,7 +60,7 @@ impl Builder {
                 self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64 + 1, cells.1 as u64 + 1, 1], l.kind)?;
                 LayerMesh::Surface(mesh::grid(DVec2::new(size.0, size.1) * len, *cells, *pattern, z * len))
             }
-            MeshSpec::TetSlab { size, cells, depth, elements, top, grading } => {
+            MeshSpec::TetSlab { size, cells, depth, elements, top, grading, coarsen } => {
                 if l.kind != LayerKind::Volume {
                     return Err(self.err(&field, "a TetSlab mesh belongs to a volume layer"));
                 }
@@ -77,13 +77,28 @@ impl Builder {
                 self.vertex_budget(&format!("{field}.cells"), counts, l.kind)?;
                 let size = DVec2::new(size.0, size.1) * len;
                 positive(*grading, "grading")?;
-                let (m, _) = mesh::tet_slab(size, *cells, top * len, &[(depth * len, *elements, *grading)]);
+                let coarsen = match coarsen {
+                    None => None,
+                    Some(c) => {
+                        positive(c.every, "coarsen.every")?;
+                        let from = c.from.unwrap_or(*top);
+                        if !from.is_finite() {
+                            return Err(self.err(format!("{field}.coarsen.from"), "must be finite"));
+                        }
+                        Some(mesh::Coarsening { every: c.every * len, from: from * len })
+                    }
+                };
+                let levels = [(depth * len, *elements, *grading)];
+                let (m, _, planes) = mesh::tet_slab(size, *cells, top * len, &levels, coarsen)
+                    .map_err(|e| self.err(format!("{field}.coarsen.every"), e))?;
                 slab = Some(SlabGrid {
                     size,
                     cells: *cells,
                     origin: offset,
                     top: top * len + offset.z,
-                    planes: *elements as usize + 1,
+                    top_cells: *planes.cells.last().unwrap(),
+                    top_first: *planes.first.last().unwrap(),
+                    coarsen,
                 });
                 LayerMesh::Volume(m)
             }
@@ -128,11 +143,28 @@ impl Builder {
                 self.vertex_budget(&format!("{field}.elements"), counts, l.kind)?;
                 let new_top = base.top - base.origin.z + depth * len;
                 positive(*grading, "grading")?;
-                let (m, _) = mesh::tet_slab(base.size, base.cells, new_top, &[(depth * len, *elements, *grading)]);
-                slab = Some(SlabGrid { top: new_top + base.origin.z, planes: *elements as usize + 1, ..base });
+                let levels = [(depth * len, *elements, *grading)];
+                let (m, _, planes) = mesh::tet_slab(base.size, base.cells, new_top, &levels, base.coarsen)
+                    .map_err(|e| self.err(format!("{field}.elements"), e))?;
+                if planes.cells[0] != base.top_cells {
+                    return Err(self.err(
+                        format!("{field}.depth"),
+                        format!(
+                            "the bottom plane's grid {:?} differs from \"{layer}\"'s top grid {:?} (a plane on a \
+                             coarsening boundary: move it off by a little)",
+                            planes.cells[0], base.top_cells
+                        ),
+                    ));
+                }
+                slab = Some(SlabGrid {
+                    top: new_top + base.origin.z,
+                    top_cells: *planes.cells.last().unwrap(),
+                    top_first: *planes.first.last().unwrap(),
+                    ..base
+                });
                 // The bottom plane is the base's top plane.
-                let plane = base.plane_len();
-                shared = (0..m.rest.len()).map(|v| (v < plane).then(|| (bi, (base.top_offset() + v) as u32))).collect();
+                let plane = base.top_len();
+                shared = (0..m.rest.len()).map(|v| (v < plane).then(|| (bi, (base.top_first + v) as u32))).collect();
                 LayerMesh::Volume(m)
             }
             MeshSpec::SurfaceOf { layer } => {
@@ -141,9 +173,9 @@ impl Builder {
                 }
                 let (bi, base) = base_slab(layer)?;
                 let top_local = base.top - base.origin.z;
-                let mut m = mesh::grid(base.size, base.cells, mesh::GridPattern::RightTriangle, top_local);
+                let mut m = mesh::grid(base.size, base.top_cells, mesh::GridPattern::RightTriangle, top_local);
                 // The slab's prisms split each cell along the same diagonal as RightTriangle.
-                shared = (0..m.rest.len()).map(|v| Some((bi, (base.top_offset() + v) as u32))).collect();
+                shared = (0..m.rest.len()).map(|v| Some((bi, (base.top_first + v) as u32))).collect();
                 m.uv.iter_mut().for_each(|u| *u += base.origin.truncate() - offset.truncate());
                 LayerMesh::Surface(m)
             }

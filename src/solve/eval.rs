@@ -403,7 +403,7 @@ mod tests {
         use super::super::elements::{CellElem, TetElem};
         use crate::physics::tet::TetRest;
         use crate::physics::{ConstitutiveModel, Lame};
-        let (m, _) = crate::mesh::tet_slab(glam::DVec2::new(2.0, 1.0), (2, 1), 0.0, &[(1.0, 2, 1.0)]);
+        let (m, _, _) = crate::mesh::tet_slab(glam::DVec2::new(2.0, 1.0), (2, 1), 0.0, &[(1.0, 2, 1.0)], None).unwrap();
         let lame = Lame::solid(1.0, 0.495);
         let tets: Vec<TetElem> = m
             .tets

@@ -30,6 +30,9 @@ pub struct FilmSubstrate {
     /// Tetrahedral prisms through the substrate depth, and the bottom-to-top thickness ratio.
     pub depth_elements: u32,
     pub grading: f64,
+    /// In-plane coarsening with depth: the grid halves along x every this many lambda_c below
+    /// the film (issue 25 item 3); None: uniform.
+    pub coarsen: Option<f64>,
     /// Increments up to `max_strain` x the expected onset strain.
     pub increments: u32,
     pub max_strain: f64,
@@ -147,6 +150,7 @@ impl FilmSubstrate {
             cells_per_wave,
             depth_elements,
             grading: 1.0,
+            coarsen: None,
             increments: 30,
             max_strain: 3.0,
             volume_element: None,
@@ -198,7 +202,7 @@ impl FilmSubstrate {
         solver: (projection: Adaptive, precision: {precision:?}, max_iterations: 100, perturbation: (amplitude: 0.001, seed: 1)),
         layers: [
             Layer(name: "substrate", kind: Volume,
-                mesh: TetSlab(size: ({length}, {dx}), cells: ({cells}, 1), depth: {depth}, elements: {de}, grading: {grading}),
+                mesh: TetSlab(size: ({length}, {dx}), cells: ({cells}, 1), depth: {depth}, elements: {de}, grading: {grading}{coarsen}),
                 material: (model: {model:?}, young: {young_s}, poisson: {ns}{element})),
             Layer(name: "film", kind: Shell, mesh: SurfaceOf(layer: "substrate"),
                 material: (young: {young_f}, poisson: {nf}, thickness: 1.0), bending: (model: Tan)),
@@ -217,6 +221,7 @@ impl FilmSubstrate {
             grading = self.grading,
             model = self.substrate_model,
             precision = self.precision,
+            coarsen = self.coarsen.map_or(String::new(), |c| format!(", coarsen: (every: {})", c * lambda_inf)),
             element = self.volume_element.map_or(String::new(), |v| format!(", volume_element: {v:?}")),
         )
     }

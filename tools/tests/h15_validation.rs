@@ -87,6 +87,32 @@ fn case_7_with_ten_graded_depth_elements() {
     assert_case_7(&r);
 }
 
+#[test]
+fn case_7_with_the_substrate_coarsening_every_half_wavelength() {
+    // Issue 25 item 3: the substrate's grid halves along x every lambda_c / 2 below the film
+    // (transition cells between the grids). Onset +1.5 % (uniform: +0.7 %), amplitudes within
+    // 1.4 %; every lambda_c / 4 fails (onset +5.6 %): `coarsening_table`.
+    let mut setup = FilmSubstrate::deep(1000.0, 8, 20, 20);
+    (setup.grading, setup.coarsen) = (20.0, Some(0.5));
+    let r = setup.run().unwrap();
+    report("case 7, Ebar_f / Ebar_s = 1000, coarsening every lambda / 2", &r);
+    assert_case_7(&r);
+    assert!(r.vertices < 6762 * 4 / 5, "the grid did not coarsen: {} vertices", r.vertices);
+}
+
+#[test]
+fn case_8_with_the_substrate_coarsening_every_half_wavelength() {
+    // H = 0.5 lambda_inf on a rigid base, case 8's mesh: onset +2.8 % as uniform.
+    let mut setup = FilmSubstrate::on_rigid(0.5, 0.45, 20, 10);
+    setup.coarsen = Some(0.5);
+    let r = setup.run().unwrap();
+    report("case 8, H / lambda_inf = 0.5, coarsening every lambda / 2", &r);
+    assert!(r.all_converged);
+    assert!(r.wavelength_error().abs() < 0.05, "wavelength {:+.3}", r.wavelength_error());
+    assert!(r.onset_error().abs() < 0.05, "onset {:+.3}", r.onset_error());
+    assert!(r.vertices < 3542, "the grid did not coarsen: {} vertices", r.vertices);
+}
+
 /// The errors of cases 7 and 8 (H = 0.5 lambda_inf) against the substrate's depth elements and
 /// grading (issue 25 item 3), printed:
 /// `cargo test --release -p skinsim-cli --test h15_validation -- --ignored --nocapture`.
@@ -102,6 +128,25 @@ fn depth_resolution_table() {
         rigid.grading = grading;
         let r = rigid.run().unwrap();
         report(&format!("case 8, H = 0.5 lambda_inf, {} depth elements graded {grading}:1", elements.min(10)), &r);
+    }
+}
+
+/// Cases 7 and 8 (H = 0.5 lambda_inf) with the substrate's grid halving along x every
+/// 0.25, 0.5 and 1 lambda_c below the film, and uniform (issue 25 item 3), printed:
+/// `cargo test --release -p skinsim-cli --test h15_validation -- --ignored --nocapture coarsening_table`.
+#[test]
+#[ignore]
+fn coarsening_table() {
+    for every in [None, Some(0.25), Some(0.5), Some(1.0)] {
+        let mut deep = FilmSubstrate::deep(1000.0, 8, 20, 20);
+        (deep.grading, deep.coarsen) = (20.0, every);
+        let r = deep.run().unwrap();
+        report(&format!("case 7, coarsening every {every:?} lambda, {} vertices, {} tets", r.vertices, r.tets), &r);
+        // Case 8's test set-up (10 uniform elements through H).
+        let mut rigid = FilmSubstrate::on_rigid(0.5, 0.45, 20, 10);
+        rigid.coarsen = every;
+        let r = rigid.run().unwrap();
+        report(&format!("case 8, H = 0.5 lambda_inf, coarsening every {every:?} lambda, {} vertices", r.vertices), &r);
     }
 }
 

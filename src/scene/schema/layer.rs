@@ -190,6 +190,9 @@ pub enum MeshSpec {
         /// the surface, where wrinkle displacements are largest).
         #[serde(default = "default_one")]
         grading: f64,
+        /// In-plane coarsening with depth; layers stacked on the slab (TetOn) share it.
+        #[serde(default)]
+        coarsen: Option<CoarsenSpec>,
     },
     /// A triangle surface from an OBJ file (path relative to the scene file), in length units.
     Obj { path: String },
@@ -225,6 +228,18 @@ pub enum MeshSpec {
         #[serde(default)]
         region: Option<RegionSpec>,
     },
+}
+
+/// A slab's grid halves along each axis whose cell count is even every `every` (length units)
+/// below z = `from` (default: the slab's top; give the skin surface's z when layers are stacked
+/// on the slab): wrinkle displacements decay like exp(-2 pi depth / lambda), so about lambda / 2
+/// keeps VALIDATION.md case 7 (issue 25 item 3). Element grids step by at most one halving.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Coarsen")]
+pub struct CoarsenSpec {
+    pub every: f64,
+    #[serde(default)]
+    pub from: Option<f64>,
 }
 
 /// A part of a surface: by UV rectangle or mask, the faces all of whose vertices it selects; by
