@@ -66,6 +66,42 @@ fn stacked_layers_share_their_interfaces() {
     }
 }
 
+#[test]
+fn a_coarsening_stack_shares_its_interfaces_and_solves() {
+    // Issue 25 item 3: the grid halves every 0.6 mm below the skin (z = 0). Planes from the
+    // top: z = 0 and -0.5 (8 x 4), -1 (4 x 2; the dermis' bottom is the hypodermis' top), -1.5
+    // (2 x 1), -2 (1 x 1).
+    let text = STACK
+        .replace(
+            "cells: (4, 2), depth: 1.5, elements: 2, top: -1.0)",
+            "cells: (8, 4), depth: 1.0, elements: 2, top: -1.0, coarsen: (every: 0.6, from: 0.0))",
+        )
+        .replace("depth: 1.0, elements: 3)", "depth: 1.0, elements: 2)")
+        .replace(
+            "Attach(layer: \"hypodermis\", to: \"body\", stiffness: 10.0),",
+            "Pin(layer: \"hypodermis\", select: Sides([ZMin])),",
+        );
+    let scene = load_str(&text, &scene_path("coarse.ron")).unwrap();
+    let mut sim = Simulation::new(&scene);
+    let stats = sim.step();
+    let body = 5 * 3;
+    assert_eq!(stats.patches[0].vertices, body + 4 + 6 + 15 + 45 + 45);
+    assert!(stats.patches[0].converged, "{:?}", stats.patches[0]);
+    let total: f64 = sim.world.query::<&Mass>().iter(&sim.world).map(|m| m.0).sum();
+    let expected = (1000.0 * 1.0e-3 + 1200.0 * 1.0e-3 + 1500.0 * 0.02e-3) * 4e-3 * 2e-3;
+    assert!((total / expected - 1.0).abs() < 1e-12, "{total} vs {expected}");
+    let mut layers = sim.world.query::<(Entity, &skinsim::model::Layer)>();
+    let dermis = layers.iter(&sim.world).find(|(_, l)| l.name == "dermis").unwrap().0;
+    let corneum = layers.iter(&sim.world).find(|(_, l)| l.name == "corneum").unwrap().0;
+    let mut faces = sim.world.query::<(&skinsim::model::FaceVerts, &skinsim::model::FaceOf)>();
+    let corneum_faces: Vec<[Entity; 3]> =
+        faces.iter(&sim.world).filter(|(_, of)| of.0 == corneum).map(|(f, _)| f.0).collect();
+    assert_eq!(corneum_faces.len(), 2 * 8 * 4, "the skin keeps the finest grid");
+    for v in corneum_faces.into_iter().flatten() {
+        assert_eq!(sim.world.get::<skinsim::model::VertexOf>(v).unwrap().0, dermis);
+    }
+}
+
 const STRIP: &str = r#"Scene(name: "periodic", frames: 4, patches: [
     Patch(name: "bilayer", solver: (projection: Adaptive, max_iterations: 150, perturbation: (amplitude: 0.01, seed: 2)), layers: [
         Layer(name: "substrate", kind: Volume, mesh: TetSlab(size: (20.0, 1.0), cells: (20, 1), depth: 10.0, elements: 5),

@@ -217,6 +217,23 @@ fn layers_whose_interfaces_do_not_match() {
 }
 
 #[test]
+fn a_coarsening_slab_names_its_problems() {
+    let coarse = |every: &str| {
+        layered(DERMIS_ON, "", "").replace("top: -1.0)", &format!("top: -1.0, coarsen: (every: {every}, from: 0.0))"))
+    };
+    load_str(&coarse("0.6"), Path::new("scene.ron")).unwrap();
+    let e = err(&coarse("0.0"));
+    mentions(&e, &["layers[0] (\"hypodermis\").mesh.coarsen.every", "must be > 0"]);
+    // Two halvings across one element: the dermis' (1 / 3 mm thick) from 2 x 1 to 8 x 4.
+    let e = err(&coarse("0.2").replace("cells: (4, 2)", "cells: (16, 8)"));
+    mentions(&e, &["layers[1] (\"dermis\").mesh.elements", "halve twice", "from z = -0.6667 to -0.3333"]);
+    // The cell element needs hexahedra; the transition cells are not.
+    let e =
+        err(&coarse("0.6").replace("(young: 13.0, poisson: 0.4)", "(young: 13.0, poisson: 0.4, volume_element: Cell)"));
+    mentions(&e, &["layers[0] (\"hypodermis\").material.volume_element", "transition cells", "volume_element: Tet"]);
+}
+
+#[test]
 fn prestrain_with_a_non_positive_determinant() {
     let e = err(&layered(DERMIS_ON, ", prestrain: (stretch: (1.02, 0.0, 1.0))", ""));
     mentions(&e, &["layers[2] (\"corneum\").prestrain.stretch", "determinant 0"]);

@@ -15,7 +15,7 @@ pub mod usd;
 pub mod wrinkle_map;
 
 pub use bounds::bounds;
-pub use generate::{grid, tet_slab, Coarsening, GridPattern, SlabPlanes};
+pub use generate::{grid, tet_slab, Coarsening, CoarseningError, GridPattern, SlabPlanes};
 pub use topology::{
     boundary_vertices, check_surface, compact, edges, surface_faces_of_tets, surface_of_tets, EdgeInfo, MeshError,
 };

@@ -90,7 +90,7 @@ impl Builder {
                 };
                 let levels = [(depth * len, *elements, *grading)];
                 let (m, _, planes) = mesh::tet_slab(size, *cells, top * len, &levels, coarsen)
-                    .map_err(|e| self.err(format!("{field}.coarsen.every"), e))?;
+                    .map_err(|e| self.err(format!("{field}.coarsen.every"), halves_twice(e, len)))?;
                 slab = Some(SlabGrid {
                     size,
                     cells: *cells,
@@ -145,7 +145,7 @@ impl Builder {
                 positive(*grading, "grading")?;
                 let levels = [(depth * len, *elements, *grading)];
                 let (m, _, planes) = mesh::tet_slab(base.size, base.cells, new_top, &levels, base.coarsen)
-                    .map_err(|e| self.err(format!("{field}.elements"), e))?;
+                    .map_err(|e| self.err(format!("{field}.elements"), halves_twice(e, len)))?;
                 if planes.cells[0] != base.top_cells {
                     return Err(self.err(
                         format!("{field}.depth"),
@@ -386,6 +386,15 @@ impl Builder {
 
 /// Why an asset path is not a readable file (None when it is one): not found, a directory, or
 /// not a regular file (a device or a pipe).
+fn halves_twice(e: mesh::CoarseningError, len: f64) -> String {
+    format!(
+        "the grid would halve twice across the element from z = {:.4} to {:.4}: `coarsen.every` must be at least \
+         the element thicknesses (or use more, thinner elements)",
+        e.bottom / len,
+        e.top / len
+    )
+}
+
 pub(super) fn not_a_file(path: &std::path::Path) -> Option<String> {
     match std::fs::metadata(path) {
         Err(_) => Some(format!("not found: {}", path.display())),

@@ -51,6 +51,7 @@ pub enum Verdict {
 /// pivot: the caller decides).
 pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<Verdict> {
     let negative = chol.inertia(pattern, h)?;
+    tracing::debug!(negative, "inertia");
     if negative == 0 {
         return Some(Verdict::Stable);
     }
@@ -62,6 +63,7 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<V
         let mut precondition = |r: &mut [f64]| chol.solve_abs(r);
         eigen::smallest(n, block, &mut apply, &mut precondition, None, FIRST_ITERATIONS, TOLERANCE)
     };
+    tracing::debug!(curvature = pair.value, residual = pair.residual, iterations = pair.iterations, "first estimate");
     if pair.residual > TOLERANCE && pair.value < 0.0 {
         // The Ritz value bounds the lowest eigenvalue from above: H + sigma I with sigma a
         // little beyond it is usually definite at the first try, and close to singular along

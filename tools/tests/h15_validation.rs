@@ -137,7 +137,7 @@ fn depth_resolution_table() {
 #[test]
 #[ignore]
 fn coarsening_table() {
-    for every in [None, Some(0.25), Some(0.5), Some(1.0)] {
+    for every in [None, Some(0.25), Some(0.39), Some(0.5), Some(1.0)] {
         let mut deep = FilmSubstrate::deep(1000.0, 8, 20, 20);
         (deep.grading, deep.coarsen) = (20.0, every);
         let r = deep.run().unwrap();
