@@ -384,8 +384,8 @@ impl Builder {
     }
 }
 
-/// Why an asset path is not a readable file (None when it is one): not found, a directory, or
-/// not a regular file (a device or a pipe).
+/// The error of a coarsening that would halve the grid twice across one element (z in scene
+/// units).
 fn halves_twice(e: mesh::CoarseningError, len: f64) -> String {
     format!(
         "the grid would halve twice across the element from z = {:.4} to {:.4}: `coarsen.every` must be at least \
@@ -395,6 +395,8 @@ fn halves_twice(e: mesh::CoarseningError, len: f64) -> String {
     )
 }
 
+/// Why an asset path is not a readable file (None when it is one): not found, a directory, or
+/// not a regular file (a device or a pipe).
 pub(super) fn not_a_file(path: &std::path::Path) -> Option<String> {
     match std::fs::metadata(path) {
         Err(_) => Some(format!("not found: {}", path.display())),
