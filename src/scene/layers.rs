@@ -378,10 +378,8 @@ impl Builder {
 }
 
 /// Whether a volume mesh has cells other than the six-tet hexahedra (a coarsening slab's
-/// transition cells).
+/// transition cells; `tet_slab` emits each cell's tets together).
 fn has_transition_cells(mesh: &LayerMesh) -> bool {
     let LayerMesh::Volume(m) = mesh else { return false };
-    let mut count = HashMap::new();
-    m.cells.iter().for_each(|&c| *count.entry(c).or_insert(0u32) += 1);
-    count.values().any(|&n| n != 6)
+    m.cells.chunk_by(|a, b| a == b).any(|cell| cell.len() != 6)
 }

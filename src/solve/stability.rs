@@ -76,7 +76,7 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<V
                 shifted[d as usize] += sigma;
             }
             let definite = chol.factorize(pattern, &shifted).is_ok();
-            tracing::debug!(sigma, definite, first = pair.value, residual = pair.residual, "shifted preconditioner");
+            tracing::debug!(sigma, definite, "shifted preconditioner");
             if definite {
                 let mut precondition = |r: &mut [f64]| chol.solve(r);
                 let guess = Some(pair.vector.as_slice());
