@@ -7,7 +7,12 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
+use glam::{DMat2, DVec2, DVec3};
 use skinsim::mesh::imperfection::remesh_under;
+use skinsim::mesh::locate::XyLocator;
+use skinsim::mesh::remesh::sizing::{
+    critical_strain, green_strain, tensor_max, wavelength_term, FaceGeometry, WavelengthSizing,
+};
 use skinsim::mesh::remesh::RemeshVertex;
 use skinsim::model::*;
 
@@ -19,8 +24,13 @@ pub fn remesh_layers(world: &mut World) {
         // Frames count from 1. The first frame is solved on the scene's own mesh, as in ARCSim
         // (remesh after each step): a remesh of the unsolved start sees no curvature and no
         // compression, so it would coarsen everything and the wrinkle mode would be chosen on
-        // the coarsest mesh allowed (measured: LK14 case 10 then ends 13 % long).
-        .filter(|(_, r)| frame >= 2 && (frame - 2).is_multiple_of(r.every))
+        // the coarsest mesh allowed (measured: LK14 case 10 then ends 13 % long). The
+        // wavelength term sees the compression the driver imposes before any solve: with it
+        // the first remesh comes before the first solve (issue 26 item 1).
+        .filter(|(_, r)| {
+            let first = if r.wavelength.is_some() { 1 } else { 2 };
+            frame >= first && (frame - first).is_multiple_of(r.every)
+        })
         .map(|(e, r)| (e, *r))
         .collect();
     layers.sort_by_key(|(e, _)| e.to_bits());
@@ -73,14 +83,21 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
     let tris: Vec<[Entity; 3]> = old_faces.iter().map(|&f| world.get::<FaceVerts>(f).expect("face").0).collect();
     let faces: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| index[&v])).collect();
     let imperfection = world.get::<LayerImperfection>(layer).map(|i| i.0);
-    let out = remesh_under(imperfection.as_ref(), input, &faces, &settings.params);
-    let changed = out.stats.splits + out.stats.collapses + out.stats.flips > 0;
+    let extra = match settings.wavelength {
+        Some(w) => wavelength_terms(world, layer, &input, &faces, &w),
+        None => Vec::new(),
+    };
+    let out = remesh_under(imperfection.as_ref(), input, &faces, &extra, &settings.params);
+    // Refine mostly (issue 26 item 3): a remesh that changes too little is not worth the
+    // resampling, the new symbolic factorization and the solve it disturbs.
+    let small = f64::from(out.stats.splits + out.stats.collapses) < settings.min_change * faces.len() as f64;
+    let changed = !small && out.stats.splits + out.stats.collapses + out.stats.flips > 0;
     let report = RemeshReport {
         size_max: settings.params.size_max,
         frame: frame as u64,
-        stats: out.stats,
-        vertices: out.vertices.len() as u32,
-        faces: out.faces.len() as u32,
+        stats: if small { Default::default() } else { out.stats },
+        vertices: if small { verts.len() } else { out.vertices.len() } as u32,
+        faces: if small { faces.len() } else { out.faces.len() } as u32,
     };
     world.entity_mut(layer).insert(report);
     if !changed {
@@ -111,13 +128,21 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
         .collect();
     // Faces by vertex set.
     let mut by_key: HashMap<[Entity; 3], Entity> = tris.iter().zip(&old_faces).map(|(t, &f)| (key(*t), f)).collect();
+    let mut unsettled = vec![false; out.vertices.len()];
     for f in &out.faces {
         let tri = f.map(|i| ent[i as usize]);
         if by_key.remove(&key(tri)).is_none() {
             world.spawn((FaceVerts(tri), FaceOf(layer)));
-            if settings.settle {
-                tri.iter().for_each(|&v| _ = world.entity_mut(v).insert(Unsettled));
-            }
+            f.iter().for_each(|&v| unsettled[v as usize] = true);
+        }
+    }
+    if settings.settle {
+        // The changed region grown by `settle_rings` rings of faces: its boundary then sits
+        // where the mesh did not change, so the settle does not pull old vertices against new ones
+        // it cannot move.
+        skinsim::mesh::grow_rings(&out.faces, &mut unsettled, settings.settle_rings);
+        for (i, _) in unsettled.iter().enumerate().filter(|(_, u)| **u) {
+            world.entity_mut(ent[i]).insert(Unsettled);
         }
     }
     // Edges by endpoints and, for hinges, the opposite vertices: a changed quad gets a new edge.
@@ -153,4 +178,69 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
         world.despawn(*v);
     }
     world.get_mut::<TopologyEpoch>(layer).expect("layer").0 += 1;
+}
+
+/// The wavelength term of each face of `layer` (issue 26 item 1; `sizing::wavelength_term`):
+/// lambda(x) the wavelength of the nearest kernel holding the layer (twice its radius, LK14
+/// 4.1), and the strain the one the layer is driven to: each coupling ties a layer's kernel
+/// averages to the layer below (LK14 eq. 4.1), so every layer down the kernel chain carries the
+/// membrane strain the layer's mean surface follows. The most compressive of them counts: the
+/// kinematic bottom moves first (before any solve), the solved layers between spread its
+/// compression (the localized pinch's epidermis wrinkles out to about twice the pinch radius,
+/// where its base does not move).
+fn wavelength_terms(
+    world: &mut World,
+    layer: Entity,
+    input: &[RemeshVertex],
+    faces: &[[u32; 3]],
+    w: &WavelengthSizing,
+) -> Vec<DMat2> {
+    let kernels: Vec<Kernel> = world.query::<&Kernel>().iter(world).copied().collect();
+    let centres: Vec<(DVec2, f64)> =
+        kernels.iter().filter(|k| k.upper == layer).map(|k| (k.shape.centre, 2.0 * k.shape.radius)).collect();
+    let Some(thickness) = world.get::<Thickness>(layer).map(|t| t.0) else { return Vec::new() };
+    let mut terms = vec![DMat2::ZERO; faces.len()];
+    let (mut below, mut steps) = (layer, 0);
+    while let Some(k) = kernels.iter().find(|k| k.upper == below).filter(|_| steps < kernels.len()) {
+        (below, steps) = (k.lower, steps + 1);
+        let Some(LayerStrain { uv, strain, faces: lower_faces }) = layer_strain(world, below) else { continue };
+        let locator = XyLocator::new(&uv, &lower_faces);
+        for (f, term) in faces.iter().zip(&mut terms) {
+            let c = f.iter().map(|&i| input[i as usize].uv).sum::<DVec2>() / 3.0;
+            let nearest = centres.iter().min_by(|a, b| a.0.distance_squared(c).total_cmp(&b.0.distance_squared(c)));
+            let (Some(&(_, lambda)), Some((face, _))) = (nearest, locator.locate(c.extend(0.0))) else { continue };
+            *term = tensor_max(&[*term, wavelength_term(strain[face], lambda, critical_strain(thickness, lambda), w)]);
+        }
+    }
+    terms
+}
+
+/// A layer's material positions (z = 0, for `XyLocator`), the Green strain of each face, and
+/// its faces.
+struct LayerStrain {
+    uv: Vec<DVec3>,
+    strain: Vec<DMat2>,
+    faces: Vec<[u32; 3]>,
+}
+
+/// None for a layer without faces.
+fn layer_strain(world: &World, layer: Entity) -> Option<LayerStrain> {
+    let verts: Vec<Entity> = world.get::<LayerVertices>(layer)?.entities().to_vec();
+    let index: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
+    let uv: Vec<DVec3> = verts.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0.extend(0.0)).collect();
+    let x: Vec<DVec3> = verts.iter().map(|&v| world.get::<Position>(v).expect("vertex").0).collect();
+    let faces: Vec<[u32; 3]> = world
+        .get::<LayerFaces>(layer)?
+        .entities()
+        .iter()
+        .map(|&f| world.get::<FaceVerts>(f).expect("face").0.map(|v| index[&v]))
+        .collect();
+    if faces.is_empty() {
+        return None;
+    }
+    let strain = faces
+        .iter()
+        .map(|f| green_strain(&FaceGeometry { uv: f.map(|i| uv[i as usize].truncate()), x: f.map(|i| x[i as usize]) }))
+        .collect();
+    Some(LayerStrain { uv, strain, faces })
 }

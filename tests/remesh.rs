@@ -507,3 +507,52 @@ fn attachments_follow_a_remesh_of_either_layer() {
         assert!(worst_gap < 0.1, "{attached} -> {to}: the film left the base ({worst_gap})");
     }
 }
+
+/// Issue 26 item 1: with the wavelength term, the LK14 fig. 3-3 strip (case 10, lambda 6 mm)
+/// started on 4 elements per wavelength is refined before its first solve, to at most lambda / 8
+/// across the compression wherever the driver compresses it (all of it, at 0.1 % in frame 1),
+/// and the solve on the refined mesh converges. Without the term the first frame runs on the
+/// scene's mesh.
+#[test]
+fn the_wavelength_term_refines_before_the_first_solve() {
+    let refine = |wavelength: &str| {
+        let remesh = format!(
+            "bending: Some((model: Tan)),\n                      remesh: Some((size_min: 0.25, size_max: 3.0, \
+             refine_angle: 0.4, refine_compression: 0.05{wavelength}))),"
+        );
+        let edits = [
+            ("cells: (128, 18), pattern: Equilateral, z: 0.01875", "cells: (64, 9), pattern: Equilateral, z: 0.01875"),
+            ("bending: Some((model: Tan))),", remesh.as_str()),
+        ];
+        let mut text = std::fs::read_to_string(scene_path("lk14/fig3_3_e1_h1_quick.ron")).unwrap();
+        for (from, to) in edits {
+            assert!(text.contains(from), "{from}");
+            text = text.replace(from, to);
+        }
+        let path = scratch_dir("wavelength").join("scene.ron");
+        let mut scene = skinsim::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+        scene.scene.frames = 1;
+        let (mut sim, stats) = run(&scene);
+        assert!(stats[0].patches[0].converged, "{:?}", stats[0].patches[0]);
+        let skin = layer(&mut sim, "skin");
+        let report = *sim.world.get::<RemeshReport>(skin).unwrap();
+        let w = &sim.world;
+        let uv = |v: Entity| w.get::<MaterialPos>(v).unwrap().0;
+        let widest = w
+            .get::<LayerEdges>(skin)
+            .unwrap()
+            .entities()
+            .iter()
+            .map(|&e| w.get::<EdgeVerts>(e).unwrap().0.map(uv))
+            .map(|[a, b]| (a.x - b.x).abs())
+            .fold(0.0f64, f64::max);
+        (report, widest)
+    };
+    let (report, widest) = refine(", wavelength: Some((per_wavelength: 8, onset: 0.5))");
+    println!("frame 1 remeshed: {report:?}; widest edge across the compression {widest:.3e} m");
+    assert_eq!(report.frame, 1, "{report:?}");
+    assert!(widest <= 6e-3 / 8.0 * (1.0 + 1e-9), "{widest}");
+    let (report, widest) = refine("");
+    assert_eq!(report.frame, 0, "no remesh before the first solve without the term");
+    assert!(widest > 1.4e-3, "{widest}");
+}

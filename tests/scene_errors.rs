@@ -290,6 +290,22 @@ fn bad_remesh_settings_name_the_field() {
         mentions(&e, &[field, "\"film\""]);
         assert!(e.field.is_some());
     }
+    // Wavelength-aware refinement (issue 26): its numbers, and a coupling to read lambda from.
+    let wavelength = good.replace("refine_compression: 0.01", "refine_compression: 0.01, wavelength: Some(())");
+    let e = err(&wavelength);
+    mentions(&e, &["remesh.wavelength", "needs a coupling", "\"film\" as its upper layer"]);
+    let coupling = r#"Coupling(upper: "film", lower: "base", wavelength: Constant(2.5), seed: 1)"#;
+    let coupled = wavelength.replace(
+        "            ],\n        ),",
+        &format!("            ],\n            couplings: [{coupling}],\n        ),"),
+    );
+    load_str(&coupled, Path::new("scene.ron")).unwrap();
+    for (to, field) in [
+        ("Some((per_wavelength: 0.5))", "remesh.wavelength.per_wavelength"),
+        ("Some((onset: -1.0))", "remesh.wavelength.onset"),
+    ] {
+        mentions(&err(&coupled.replace("Some(())", to)), &[field, "\"film\""]);
+    }
     // Only shells remesh: not a kinematic layer, not a volume.
     let e = err(&GOOD.replace("cells: (4, 2))),", &format!("cells: (4, 2)), {REMESH}),")));
     mentions(&e, &["\"base\"", "remesh", "shell layers", "Kinematic"]);

@@ -2,10 +2,10 @@
 //! space (the `cell` form of a scene's perturbation). It depends on the material point only, so
 //! every mesh of a layer, and every vertex a remesh creates, carries the same imperfection.
 
-use glam::{DVec2, DVec3};
+use glam::{DMat2, DVec2, DVec3};
 use noise::NoiseFn;
 
-use super::remesh::{remesh, RemeshParams, RemeshVertex, Remeshed};
+use super::remesh::{remesh_sized, RemeshParams, RemeshVertex, Remeshed};
 use super::shading::vertex_normals;
 
 #[derive(Clone, Copy, Debug)]
@@ -56,9 +56,10 @@ pub fn remesh_under(
     imperfection: Option<&Imperfection>,
     mut input: Vec<RemeshVertex>,
     faces: &[[u32; 3]],
+    extra: &[DMat2],
     p: &RemeshParams,
 ) -> Remeshed {
-    let Some(imp) = imperfection else { return remesh(&input, faces, p) };
+    let Some(imp) = imperfection else { return remesh_sized(&input, faces, extra, p) };
     let split = |v: &[RemeshVertex]| -> (Vec<DVec3>, Vec<DVec2>, Vec<[bool; 3]>) {
         (v.iter().map(|v| v.rest).collect(), v.iter().map(|v| v.uv).collect(), v.iter().map(|v| v.fixed).collect())
     };
@@ -66,7 +67,7 @@ pub fn remesh_under(
     let mut rest = original.clone();
     imp.apply(-1.0, &mut rest, &uv, faces, &fixed, |_| true);
     input.iter_mut().zip(rest).for_each(|(v, r)| v.rest = r);
-    let mut out = remesh(&input, faces, p);
+    let mut out = remesh_sized(&input, faces, extra, p);
     let (mut rest, uv, fixed) = split(&out.vertices);
     imp.apply(1.0, &mut rest, &uv, &out.faces, &fixed, |i| out.vertices[i].origin.is_none());
     for (v, r) in out.vertices.iter_mut().zip(rest) {

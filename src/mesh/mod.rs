@@ -17,7 +17,8 @@ pub mod wrinkle_map;
 pub use bounds::bounds;
 pub use generate::{grid, tet_slab, Coarsening, CoarseningError, GridPattern, SlabPlanes};
 pub use topology::{
-    boundary_vertices, check_surface, compact, edges, surface_faces_of_tets, surface_of_tets, EdgeInfo, MeshError,
+    boundary_vertices, check_surface, compact, edges, grow_rings, surface_faces_of_tets, surface_of_tets, EdgeInfo,
+    MeshError,
 };
 
 use glam::{DVec2, DVec3};

@@ -71,6 +71,15 @@ pub fn boundary_vertices(faces: &[[u32; 3]], n: usize) -> Vec<bool> {
     boundary
 }
 
+/// Grows a marked set of vertices by `rings` rings: each ring adds every vertex of a face that
+/// has a marked vertex. Vertices farther than `rings` faces from the set stay unmarked.
+pub fn grow_rings(faces: &[[u32; 3]], marked: &mut [bool], rings: u32) {
+    for _ in 0..rings {
+        let touched: Vec<[u32; 3]> = faces.iter().filter(|f| f.iter().any(|&v| marked[v as usize])).copied().collect();
+        touched.iter().flatten().for_each(|&v| marked[v as usize] = true);
+    }
+}
+
 /// Checks a surface: indices in range, no degenerate or duplicate faces, manifold edges
 /// (at most two faces each), every vertex used.
 pub fn check_surface(m: &SurfaceMesh) -> Result<(), MeshError> {
@@ -182,6 +191,24 @@ mod tests {
             rest: vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
             uv: vec![DVec2::ZERO; 4],
             faces: vec![[0, 1, 2], [0, 2, 3]],
+        }
+    }
+
+    /// Issue 26 item 2: the settled region is the changed faces plus `rings` rings; the settle
+    /// moves only the vertices it is given (`solve::settle`'s test), so everything beyond stays
+    /// bitwise where it was.
+    #[test]
+    fn rings_grow_by_one_face_each_and_no_further() {
+        // A strip of 10 x 1 cells, right triangles: vertex i at the bottom, 11 + i at the top.
+        let m = crate::mesh::grid(DVec2::new(10.0, 1.0), (10, 1), crate::mesh::GridPattern::RightTriangle, 0.0);
+        let column = |v: usize| m.uv[v].x.round() as i64;
+        for rings in 0..4u32 {
+            let mut marked = vec![false; m.uv.len()];
+            marked.iter_mut().enumerate().filter(|(v, _)| column(*v) == 5).for_each(|(_, b)| *b = true);
+            grow_rings(&m.faces, &mut marked, rings);
+            for (v, &b) in marked.iter().enumerate() {
+                assert_eq!(b, (column(v) - 5).abs() <= rings as i64, "vertex {v} with {rings} rings");
+            }
         }
     }
 

@@ -29,6 +29,36 @@ pub fn normal_map(uv: &[DVec2], faces: &[[u32; 3]], normals: &[DVec3], size: u32
 /// patches into one asset map).
 pub fn draw_normals(img: &mut RgbImage, uv: &[DVec2], faces: &[[u32; 3]], normals: &[DVec3], lo: DVec2, hi: DVec2) {
     let size = img.width();
+    rasterize(size, uv, faces, normals, lo, hi, |x, y, n| img.put_pixel(x, y, encode(n)));
+}
+
+/// The unit normals a `size` map of the triangles holds, before the 8-bit encoding, row by row
+/// (row 0 at max y); (0, 0, 1) where no triangle covers a pixel's centre. What the map error
+/// compares: the encoding's steps (up to about half a degree) would hide finer differences.
+pub fn normal_samples(
+    uv: &[DVec2],
+    faces: &[[u32; 3]],
+    normals: &[DVec3],
+    size: u32,
+    lo: DVec2,
+    hi: DVec2,
+) -> Vec<DVec3> {
+    let mut out = vec![DVec3::Z; (size * size) as usize];
+    rasterize(size, uv, faces, normals, lo, hi, |x, y, n| out[(y * size + x) as usize] = n);
+    out
+}
+
+/// Calls `put(column, row, unit normal)` for every pixel centre of a `size` square map over
+/// [lo, hi] that a triangle covers, the vertex normals interpolated barycentrically.
+fn rasterize(
+    size: u32,
+    uv: &[DVec2],
+    faces: &[[u32; 3]],
+    normals: &[DVec3],
+    lo: DVec2,
+    hi: DVec2,
+    mut put: impl FnMut(u32, u32, DVec3),
+) {
     let span = (hi - lo).max(DVec2::splat(f64::MIN_POSITIVE));
     // Pixel centres: column i at x = lo.x + (i + 0.5) / size * span.x; row j from the top.
     let to_pixel = |p: DVec2| DVec2::new((p.x - lo.x) / span.x * size as f64, (hi.y - p.y) / span.y * size as f64);
@@ -52,7 +82,7 @@ pub fn draw_normals(img: &mut RgbImage, uv: &[DVec2], faces: &[[u32; 3]], normal
                 let wc = 1.0 - wa - wb;
                 let eps = -1e-9;
                 if wa >= eps && wb >= eps && wc >= eps {
-                    img.put_pixel(x, y, encode((n[0] * wa + n[1] * wb + n[2] * wc).normalize_or(DVec3::Z)));
+                    put(x, y, (n[0] * wa + n[1] * wb + n[2] * wc).normalize_or(DVec3::Z));
                 }
             }
         }

@@ -141,6 +141,13 @@ pub struct RemeshSettings {
     pub every: u32,
     /// Settle the vertices of changed faces after a remesh (`Unsettled`, the Settle stage).
     pub settle: bool,
+    /// Rings of neighbours settled with them.
+    pub settle_rings: u32,
+    /// A remesh splitting or collapsing fewer than this fraction of the faces' count is dropped.
+    pub min_change: f64,
+    /// Wavelength-aware refinement from the layer's kernels and driver (issue 26); the first
+    /// remesh then runs before the first solve.
+    pub wavelength: Option<crate::mesh::remesh::sizing::WavelengthSizing>,
 }
 
 /// What the last remesh of a layer did, and the layer's size after it.

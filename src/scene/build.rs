@@ -312,12 +312,24 @@ impl Builder {
             }
             drivers.push(built);
         }
-        let couplings = p
+        let couplings: Vec<_> = p
             .couplings
             .iter()
             .enumerate()
             .map(|(ci, c)| self.coupling(&format!("{at}.couplings[{ci}]"), c, &cx))
             .collect::<Result<_, _>>()?;
+        for (li, l) in layers.iter().enumerate().skip(first) {
+            let wavelength = l.remesh.as_ref().is_some_and(|r| r.wavelength.is_some());
+            if wavelength && !couplings.iter().any(|c| c.upper == li) {
+                return Err(self.err(
+                    format!("{at}.layers[{}].remesh.wavelength", li - first),
+                    format!(
+                        "needs a coupling with \"{}\" as its upper layer (lambda(x) is its kernels' wavelength)",
+                        l.name
+                    ),
+                ));
+            }
+        }
         let anchors = p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &cx)).transpose()?;
         let patch =
             BuiltPatch { name: p.name.clone(), body, solver, perturbation, layers, drivers, couplings, anchors };

@@ -212,6 +212,11 @@ impl Builder {
                 ));
             }
         }
+        if !(r.min_change >= 0.0 && r.min_change.is_finite()) {
+            return Err(
+                self.err(format!("{at}.min_change"), format!("must be a non-negative number (got {})", r.min_change))
+            );
+        }
         if r.every == 0 {
             return Err(self.err(format!("{at}.every"), "must be at least 1"));
         }
@@ -233,7 +238,32 @@ impl Builder {
             refine_velocity: r.refine_velocity.map(|v| v * len),
             ..stated
         };
-        Ok(crate::model::RemeshSettings { params, every: r.every, settle: r.settle })
+        let wavelength = r
+            .wavelength
+            .map(|w| {
+                if !(w.per_wavelength >= 1.0 && w.per_wavelength.is_finite()) {
+                    return Err(self.err(
+                        format!("{at}.wavelength.per_wavelength"),
+                        format!("must be a number of at least 1 (got {})", w.per_wavelength),
+                    ));
+                }
+                if !(w.onset >= 0.0 && w.onset.is_finite()) {
+                    return Err(self.err(
+                        format!("{at}.wavelength.onset"),
+                        format!("must be a non-negative number (got {})", w.onset),
+                    ));
+                }
+                Ok(crate::mesh::remesh::sizing::WavelengthSizing { per_wavelength: w.per_wavelength, onset: w.onset })
+            })
+            .transpose()?;
+        Ok(crate::model::RemeshSettings {
+            params,
+            every: r.every,
+            settle: r.settle,
+            settle_rings: r.settle_rings,
+            min_change: r.min_change,
+            wavelength,
+        })
     }
 
     /// A material with its preset's values filled in where the scene states none (in the

@@ -2,6 +2,7 @@
 
 pub mod asset;
 pub mod bake;
+pub mod field_error;
 pub mod film;
 pub mod layout;
 pub mod lk14_report;

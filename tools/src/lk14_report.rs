@@ -21,6 +21,7 @@ use skinsim::physics::BendingElement;
 use skinsim::scene;
 use skinsim_systems::Simulation;
 
+use crate::field_error;
 use crate::plot::{LogLog, Point};
 use crate::wrinkles::{resample_on_grid, row_peaks};
 
@@ -47,11 +48,32 @@ pub struct Lk14Row {
     pub time_ratio: Option<(f64, bool)>,
     /// The same at the same |energy error|.
     pub time_ratio_energy: Option<(f64, bool)>,
+    /// Wrinkle-map error against the reference: the mean angle (radians) between the normals
+    /// of the two baked maps (`field_error::map_error`).
+    pub map_error: f64,
+    /// The time ratio at the same wrinkle-map error.
+    pub time_ratio_map: Option<(f64, bool)>,
+    /// Height-field error against the reference, without the affine part
+    /// (`field_error::height_error`).
+    pub height_error: f64,
+    /// Frames whose remesh changed the swept layer's topology.
+    pub remeshes: u32,
+    /// Adaptive runs: the Newton iterations of a frame after a remesh at a held load (past the
+    /// last keyframe, remeshing every frame for `HELD_FRAMES`): what a remesh adds, alone;
+    /// mean over those frames whose remesh changed the topology.
+    pub iterations_per_remesh: Option<f64>,
     /// The series' reference run (the finest uniform one).
     pub reference: bool,
     energy: f64,
     grid: Vec<glam::DVec3>,
+    grid_uv: Vec<glam::DVec2>,
+    /// The wrinkle map baked (`maps/`), and its normals before the encoding.
+    map: image::RgbImage,
+    normals: Vec<glam::DVec3>,
 }
+
+/// Wrinkle maps baked for the map error: pixels over the material rectangle's longer side.
+const MAP_SIZE: u32 = 512;
 
 /// A case: its scene, the layer whose mesh is swept, the mesh line to replace, the kernel
 /// wavelength (mm) the analysis compares with (none for the pinch, whose spectrum its own
@@ -74,7 +96,7 @@ struct Case {
     every: u32,
 }
 
-const CASES: [Case; 3] = [
+const CASES: [Case; 4] = [
     Case {
         name: "case 10 (fig. 3-3 strip, lambda 6 mm)",
         scene: "fig3_3_e1_h1_quick.ron",
@@ -112,7 +134,30 @@ const CASES: [Case; 3] = [
         every: 1,
         adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
     },
+    // Issue 26 item 6: a pinch of radius 6 mm on a 64 x 48 mm patch, wrinkles on under a
+    // quarter of it; adaptive runs refine by the wavelength term (`WAVELENGTH_CASES`).
+    Case {
+        name: "localized pinch (64 x 48 mm, lambda_2 2 mm)",
+        scene: "pinch_localized.ron",
+        layer: "epidermis",
+        mesh: "cells: (128, 111), pattern: Equilateral, z: 1.0125",
+        lambda_mm: None,
+        cell_mm: 1.0,
+        uniform: &[(96, 83), (128, 111), (192, 166), (256, 222)],
+        // (edges at most half the kernel radius, 0.5 mm: from a coarser start the first remesh
+        // splits every edge)
+        start: (128, 111),
+        every: 2,
+        adaptive: &[(0.1, 1.0, 0.6, 0.05), (0.1, 1.0, 0.3, 0.02)],
+    },
 ];
+
+/// Each case's name in the maps' file names.
+const CASE_KEYS: [&str; 4] = ["case10", "case11", "pinch", "localized"];
+
+/// Adaptive runs of a case whose index is here refine by the wavelength term too (8 elements
+/// per wavelength from half the critical strain).
+const WAVELENGTH_CASES: [usize; 1] = [3];
 
 /// Runs the sweeps of `cases` (indices into case 10, case 11, pinch; empty: all), every shell
 /// bending with `element`; `quick` keeps the two coarsest settings of each series and two frames.
@@ -134,11 +179,14 @@ pub fn speed_error(
             let scene_text = mesh_line(&text, case.mesh, nx, ny, "");
             series.push(run(case, &scene_text, &dir, "uniform", format!("{nx} x {ny} cells"), quick)?);
         }
+        let ci = CASES.iter().position(|c| std::ptr::eq(c, case)).expect("a case");
+        let wavelength =
+            if WAVELENGTH_CASES.contains(&ci) { ", wavelength: Some((per_wavelength: 8, onset: 0.5))" } else { "" };
         for &(lo, hi, angle, c) in case.adaptive.iter().take(take(case.adaptive.len())) {
             let every = case.every;
             let remesh = format!(
                 ", remesh: Some((size_min: {lo}, size_max: {hi}, refine_angle: {angle}, refine_compression: {c}, \
-                 every: {every}))"
+                 every: {every}{wavelength}))"
             );
             let scene_text = mesh_line(&text, case.mesh, case.start.0, case.start.1, &remesh);
             let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm, every {every}");
@@ -150,17 +198,31 @@ pub fn speed_error(
         let (reference, shape) = (series[finest].energy, series[finest].grid.clone());
         let mean = shape.iter().map(|x| x.z).sum::<f64>() / shape.len() as f64;
         let height = (shape.iter().map(|x| (x.z - mean).powi(2)).sum::<f64>() / shape.len() as f64).sqrt();
+        let (normals, grid_uv) = (series[finest].normals.clone(), series[finest].grid_uv.clone());
+        std::fs::create_dir_all(out.join("maps"))?;
+        for (k, r) in series.iter().enumerate() {
+            let kind = if r.series.ends_with("adaptive") { "adaptive" } else { "uniform" };
+            r.map.save(out.join("maps").join(format!("{}_{k}_{kind}.png", CASE_KEYS[ci])))?;
+        }
         for r in &mut series {
             r.energy_error = r.energy / reference - 1.0;
             let d2 = r.grid.iter().zip(&shape).map(|(a, b)| a.distance_squared(*b)).sum::<f64>();
             r.shape_error = (d2 / shape.len() as f64).sqrt() / height;
+            r.map_error = field_error::sample_error(&normals, &r.normals);
+            r.height_error =
+                if r.grid_uv == grid_uv { field_error::height_error(&grid_uv, &shape, &r.grid) } else { f64::NAN };
         }
-        let uniform: Vec<(f64, f64)> = series[..finest].iter().map(|r| (r.shape_error, r.ms_per_frame)).collect();
-        let energy: Vec<(f64, f64)> = series[..finest].iter().map(|r| (r.energy_error.abs(), r.ms_per_frame)).collect();
+        let front = |f: fn(&Lk14Row) -> f64| -> Vec<(f64, f64)> {
+            series[..finest].iter().map(|r| (f(r), r.ms_per_frame)).collect()
+        };
+        let (uniform, energy, maps) =
+            (front(|r| r.shape_error), front(|r| r.energy_error.abs()), front(|r| r.map_error));
         for r in &mut series[finest + 1..] {
-            r.time_ratio = time_at_error(&uniform, r.shape_error).map(|(t, upper)| (r.ms_per_frame / t, upper));
-            r.time_ratio_energy =
-                time_at_error(&energy, r.energy_error.abs()).map(|(t, upper)| (r.ms_per_frame / t, upper));
+            let ratio =
+                |front: &[(f64, f64)], e: f64| time_at_error(front, e).map(|(t, upper)| (r.ms_per_frame / t, upper));
+            r.time_ratio = ratio(&uniform, r.shape_error);
+            r.time_ratio_energy = ratio(&energy, r.energy_error.abs());
+            r.time_ratio_map = ratio(&maps, r.map_error);
         }
         rows.extend(series);
     }
@@ -248,6 +310,7 @@ fn run(
     }
     let mut sim = Simulation::new(&built);
     let (mut vertices, mut iterations, mut seconds, mut energy, mut unconverged) = (0.0, 0, 0.0, 0.0, 0);
+    let mut remeshes = 0;
     for _ in 0..built.scene.frames {
         let clock = std::time::Instant::now();
         let s = sim.step();
@@ -260,13 +323,20 @@ fn run(
         iterations += s.patches[0].newton_iterations;
         unconverged += u32::from(!s.patches[0].converged);
         energy = s.patches[0].energy;
+        remeshes += remeshed(&mut sim, case.layer, s.frame);
     }
     let frames = built.scene.frames as f64;
+    // (measured after the timed frames and the final shape, so they change neither)
+    let iterations_per_remesh = if kind == "adaptive" && !quick { held_remeshes(&mut sim, case.layer)? } else { None };
     let ms_per_frame = 1e3 * seconds / frames;
     let (uv, x, faces) = sim.layer_mesh("skin", case.layer);
     let size = uv.iter().fold(glam::DVec2::ZERO, |m, u| m.max(*u));
     let cells = ((size.x / 0.1e-3).round() as usize, ((size.y / 0.5e-3).round() as usize).max(2));
     let (guv, gx) = resample_on_grid(&uv, &x, &faces, cells);
+    let normals = skinsim::mesh::shading::vertex_normals(&x, &faces);
+    let lo = uv.iter().fold(glam::DVec2::INFINITY, |m, u| m.min(*u));
+    let map = skinsim::mesh::wrinkle_map::normal_map(&uv, &faces, &normals, MAP_SIZE, lo, size);
+    let normals = skinsim::mesh::wrinkle_map::normal_samples(&uv, &faces, &normals, MAP_SIZE, lo, size);
     let peaks = row_peaks(&gx, &guv, 0, 0.05);
     let wavelength_error = case.lambda_mm.map_or(f64::NAN, |lambda| {
         let mut errors = peaks.iter().map(|p| 1e3 * p.wavelength / lambda - 1.0);
@@ -288,12 +358,52 @@ fn run(
         shape_error: 0.0,
         time_ratio: None,
         time_ratio_energy: None,
+        map_error: 0.0,
+        time_ratio_map: None,
+        height_error: 0.0,
+        remeshes,
+        iterations_per_remesh,
         reference: false,
         energy,
         grid: gx,
+        grid_uv: guv,
+        map,
+        normals,
     };
     eprintln!("{}: {}: {:.0} ms/frame, {:.0} vertices", row.series, row.setting, row.ms_per_frame, row.mean_vertices);
     Ok(row)
+}
+
+/// Frames run past the last keyframe, remeshing every frame, to count what a remesh adds.
+const HELD_FRAMES: u32 = 3;
+
+/// The mean Newton iterations of a frame whose remesh changed `layer`, the load held (the run
+/// past its last keyframe): the previous frame converged at the same load, so the iterations are
+/// the remesh's alone. None when no remesh changed the layer.
+fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<Option<f64>, Box<dyn std::error::Error>> {
+    let mut q = sim.world.query::<(&skinsim::model::Layer, &mut skinsim::model::RemeshSettings)>();
+    q.iter_mut(&mut sim.world).filter(|(l, _)| l.name == layer).for_each(|(_, mut r)| r.every = 1);
+    let (mut iterations, mut remeshes) = (0, 0);
+    for _ in 0..HELD_FRAMES {
+        let s = sim.step();
+        if let Some(f) = sim.failure() {
+            return Err(f.into());
+        }
+        if remeshed(sim, layer, s.frame) == 1 {
+            iterations += s.patches[0].newton_iterations;
+            remeshes += 1;
+        }
+    }
+    Ok((remeshes > 0).then(|| iterations as f64 / remeshes as f64))
+}
+
+/// 1 when the last step's remesh of `layer` changed its topology.
+fn remeshed(sim: &mut Simulation, layer: &str, frame: u32) -> u32 {
+    let mut q = sim.world.query::<(&skinsim::model::Layer, &skinsim::model::RemeshReport)>();
+    let changed = q.iter(&sim.world).any(|(l, r)| {
+        l.name == layer && r.frame == u64::from(frame) && r.stats.splits + r.stats.collapses + r.stats.flips > 0
+    });
+    u32::from(changed)
 }
 
 fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Result<()> {
@@ -317,14 +427,26 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Resu
          edges (VALIDATION.md case 5), and the adaptive case-10 runs 11-13 % too little bending energy; the \
          Quadratic element is within 1 % on that mesh. Newton iterations: the run's total, its cap raised to \
          {ITERATION_CAP} per frame so that every frame converges. Vertices: the swept layer's, mean over the \
-         frames. Time: wall per frame on this machine, one run.\n\n\
-         | series | setting | vertices | ms / frame | Newton iterations | shape error | time ratio (shape) | \
+         frames. Time: wall per frame on this machine, one run. Map error (issue 26): the mean angle between \
+         the normals of the run's and the reference's wrinkle maps ({MAP_SIZE} pixels square over the material \
+         rectangle), pixel by pixel, before the maps' 8-bit encoding (its steps, up to half a degree, would \
+         hide finer differences). Height error: the RMS of the height difference to the reference on the \
+         material grid, without its best affine fit (a rigid or affine drift of the sheet), over the reference's \
+         RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Iterations per remesh: \
+         after the run, {HELD_FRAMES} frames more with the load held (past the last keyframe) and a remesh every \
+         frame; the mean Newton iterations of those frames whose remesh changed the topology (the previous frame \
+         converged at the same load: what a remesh adds, alone). Each run's wrinkle map is in maps/ (case, row of the case from 0, kind). The localized pinch's adaptive runs add the wavelength term (8 elements per kernel \
+         wavelength where the driver's compression passes half the critical strain; its first remesh comes \
+         before the first solve).\n\n\
+         | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
+         map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     let mut csv = String::from(
         "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
-         wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound\n",
+         wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
+         iterations_per_remesh_held,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -332,7 +454,8 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Resu
             Some((q, false)) => format!("{q:.2}"),
             None => String::new(),
         };
-        let (ratio, ratio_energy) = (show(r.time_ratio), show(r.time_ratio_energy));
+        let (ratio, ratio_energy, ratio_map) = (show(r.time_ratio), show(r.time_ratio_energy), show(r.time_ratio_map));
+        let per_remesh = r.iterations_per_remesh.map_or(String::new(), |n| format!("{n:.1}"));
         let wavelength = if r.wavelength_error.is_nan() {
             "n/a".to_string()
         } else {
@@ -344,17 +467,21 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Resu
         };
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.0} | {iterations} | {:.3} | {ratio} | {wavelength} | {:+.3} % | {ratio_energy} |",
+            "| {} | {} | {:.0} | {:.0} | {iterations} | {} | {per_remesh} | {:.2} | {ratio_map} | {:.3} | {:.3} | {ratio} \
+             | {wavelength} | {:+.3} % | {ratio_energy} |",
             r.series,
             r.setting,
             r.mean_vertices,
             r.ms_per_frame,
+            r.remeshes,
+            r.map_error.to_degrees(),
+            r.height_error,
             r.shape_error,
             100.0 * r.energy_error
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{:.4},{},{},{:.6}",
             r.series,
             r.setting,
             r.mean_vertices,
@@ -367,6 +494,12 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Resu
             r.energy_error,
             r.time_ratio_energy.map_or(f64::NAN, |t| t.0),
             r.time_ratio_energy.is_some_and(|t| t.1),
+            r.remeshes,
+            r.iterations_per_remesh.map_or(f64::NAN, |n| n),
+            r.map_error.to_degrees(),
+            r.time_ratio_map.map_or(f64::NAN, |t| t.0),
+            r.time_ratio_map.is_some_and(|t| t.1),
+            r.height_error,
         );
     }
     std::fs::write(out.join("speed_error_lk14.md"), md)?;

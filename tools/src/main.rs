@@ -99,7 +99,7 @@ enum Command {
         /// LK14 sweeps: the bending element of every shell (hinge: the scenes' own).
         #[arg(long, value_enum, default_value = "hinge")]
         bending: BendingArg,
-        /// LK14 sweeps: only these cases (default: all three).
+        /// LK14 sweeps: only these cases (default: all four).
         #[arg(long, value_enum, value_delimiter = ',')]
         cases: Vec<Lk14Case>,
     },
@@ -154,6 +154,8 @@ enum Lk14Case {
     #[value(name = "11")]
     Case11,
     Pinch,
+    /// The localized pinch (issue 26): wrinkles on about a tenth of a large patch.
+    Localized,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -34,6 +34,11 @@ impl FaceGeometry {
     }
 }
 
+/// The Green strain (F^T F - I) / 2 of a face's map from material to world space.
+pub fn green_strain(face: &FaceGeometry) -> DMat2 {
+    (gram(face.gradient(face.x)) - DMat2::IDENTITY) * 0.5
+}
+
 /// G^T G for a 3x2 matrix G given by its columns.
 fn gram(g: [DVec3; 2]) -> DMat2 {
     let off = g[0].dot(g[1]);
@@ -179,13 +184,46 @@ pub fn face_metric(
     tensor_max(&terms)
 }
 
+/// Wavelength-aware refinement (issue 26): where the compression a layer is driven to passes
+/// `onset` times its critical strain, edges across the wrinkles are at most lambda /
+/// `per_wavelength`, so that the solve that buckles sees a mesh that can hold the mode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WavelengthSizing {
+    pub per_wavelength: f64,
+    pub onset: f64,
+}
+
+/// The compressive strain at which a plate of thickness h held to wrinkles of wavelength lambda
+/// buckles: N = D k^2 with k = 2 pi / lambda over the membrane stiffness E h / (1 - nu^2), so
+/// (k h)^2 / 12 (LK14 3.1: the kernels fix the wavelength, the layer's bending sets the load).
+pub fn critical_strain(thickness: f64, lambda: f64) -> f64 {
+    let k = 2.0 * std::f64::consts::PI / lambda;
+    (k * thickness).powi(2) / 12.0
+}
+
+/// The wavelength term of one face: `strain` the (Green) membrane strain the face is driven to,
+/// in material coordinates; (per_wavelength / lambda)^2 along the most compressed direction
+/// when its compression passes `onset` x `critical`, else zero (an edge along the wrinkles'
+/// crests is left to the other terms and the aspect bound).
+pub fn wavelength_term(strain: DMat2, lambda: f64, critical: f64, w: &WavelengthSizing) -> DMat2 {
+    let (l, v) = sym_eigen(strain);
+    // (a NaN wavelength asks for nothing)
+    if lambda.is_nan() || lambda <= 0.0 || -l[0] <= w.onset * critical {
+        return DMat2::ZERO;
+    }
+    let k = w.per_wavelength / lambda;
+    from_eigen([k * k, 0.0], v)
+}
+
 /// Per-vertex metrics for a surface (REMESH.md): each face's clamped metric, then the
-/// material-area-weighted mean over a vertex's faces.
+/// material-area-weighted mean over a vertex's faces. `extra`, when not empty, holds one more
+/// term per face (the wavelength term), combined by `tensor_max` before the clamp.
 pub fn vertex_sizing(
     uv: &[DVec2],
     x: &[DVec3],
     velocity: Option<&[DVec3]>,
     faces: &[[u32; 3]],
+    extra: &[DMat2],
     p: &RemeshParams,
 ) -> Vec<DMat2> {
     let normals = vertex_normals(x, faces);
@@ -213,7 +251,11 @@ pub fn vertex_sizing(
             continue;
         }
         let vel = velocity.map(|v| f.map(|i| v[i as usize]));
-        let m = clamp(face_metric(&geo, theta[fi], f.map(|i| normals[i as usize]), vel, p), p);
+        let mut m = face_metric(&geo, theta[fi], f.map(|i| normals[i as usize]), vel, p);
+        if let Some(&term) = extra.get(fi) {
+            m = tensor_max(&[m, term]);
+        }
+        let m = clamp(m, p);
         for &v in f {
             sum[v as usize] += m * area;
             weight[v as usize] += area;
@@ -306,7 +348,7 @@ mod tests {
             }
         }
         let p = params();
-        let m = vertex_sizing(&uv, &x, None, &faces, &p);
+        let m = vertex_sizing(&uv, &x, None, &faces, &[], &p);
         let mid = m[(2 * (nx + 1) + nx / 2) as usize];
         // Along the curvature 1 / (r refine_angle)^2; across it only the aspect floor.
         let along = DVec2::X.dot(mid * DVec2::X);

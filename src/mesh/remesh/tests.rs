@@ -195,3 +195,61 @@ fn curved_splits_land_on_a_bent_sheet() {
     println!("largest distance of a split vertex from the cylinder: curved {curved:.2e}, straight {straight:.2e}");
     assert!(curved < 0.15 * straight, "curved {curved:e}, straight {straight:e}");
 }
+
+#[test]
+fn the_wavelength_term_bounds_edges_across_the_compression_where_it_passes_the_onset() {
+    // Issue 26 item 1: the driver compresses the left half past the onset (x 2 of it), the right
+    // half to a quarter of it; lambda 0.2, 8 elements per wavelength: edges across x at most 0.025
+    // on the left, and nothing asked of the flat, unstrained sheet on the right (size_max).
+    let (v, f) = sheet(10, GridPattern::Equilateral, flat);
+    let w = sizing::WavelengthSizing { per_wavelength: 8.0, onset: 0.5 };
+    let (lambda, critical) = (0.2, 1e-3);
+    let terms: Vec<glam::DMat2> = f
+        .iter()
+        .map(|t| {
+            let c = t.iter().map(|&i| v[i as usize].uv).sum::<DVec2>() / 3.0;
+            let e = if c.x < 0.5 { -1e-3 } else { -0.25e-3 };
+            let strain = glam::DMat2::from_cols(DVec2::new(e, 0.0), DVec2::ZERO);
+            sizing::wavelength_term(strain, lambda, critical, &w)
+        })
+        .collect();
+    let p = params(0.005, 0.2);
+    let out = remesh_sized(&v, &f, &terms, &p);
+    check(&out, 1.0);
+    let bound = lambda / w.per_wavelength;
+    let (mut left, mut right) = (Vec::new(), Vec::new());
+    for e in crate::mesh::edges(&out.faces) {
+        let [a, b] = e.v.map(|i| out.vertices[i as usize].uv);
+        if a.x.max(b.x) < 0.4 {
+            left.push((b - a).x.abs());
+        } else if a.x.min(b.x) > 0.6 {
+            right.push((b - a).length());
+        }
+    }
+    let worst = left.iter().fold(0.0f64, |m, &d| m.max(d));
+    assert!(worst <= bound * (1.0 + 1e-9), "an edge spans {worst} across the compression (bound {bound})");
+    right.sort_by(f64::total_cmp);
+    let median = right[right.len() / 2];
+    assert!(median > 3.0 * bound, "the uncompressed half refined too: median edge {median}");
+    // Without the term, the left half is as coarse as the right.
+    let plain = remesh(&v, &f, &p);
+    assert!(out.vertices.len() > 4 * plain.vertices.len(), "{} against {}", out.vertices.len(), plain.vertices.len());
+}
+
+#[test]
+fn the_wavelength_term_follows_the_compression_direction() {
+    let w = sizing::WavelengthSizing { per_wavelength: 10.0, onset: 0.5 };
+    // Compressed along (1, 1) / sqrt 2, stretched across it.
+    let d = DVec2::new(1.0, 1.0).normalize();
+    let outer = |u: DVec2| glam::DMat2::from_cols(u * u.x, u * u.y);
+    let strain = outer(d) * -0.01 + outer(d.perp()) * 0.004;
+    let m = sizing::wavelength_term(strain, 0.5, 0.01, &w);
+    assert!((d.dot(m * d) - 400.0).abs() < 1e-9, "{m:?}");
+    assert!(d.perp().dot(m * d.perp()).abs() < 1e-9, "{m:?}");
+    // Below the onset (or stretched only): nothing.
+    assert_eq!(sizing::wavelength_term(strain, 0.5, 0.03, &w), glam::DMat2::ZERO);
+    assert_eq!(sizing::wavelength_term(outer(d) * 0.01, 0.5, 0.0, &w), glam::DMat2::ZERO);
+    // (k h)^2 / 12: a 1 mm wavelength, a 0.05 mm plate.
+    let k = 2.0 * std::f64::consts::PI / 1e-3;
+    assert!((sizing::critical_strain(0.05e-3, 1e-3) - (k * 0.05e-3).powi(2) / 12.0).abs() < 1e-18);
+}
