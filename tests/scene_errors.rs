@@ -285,6 +285,7 @@ fn bad_remesh_settings_name_the_field() {
         ("refine_compression: 0.01", "refine_compression: -0.01", "remesh.refine_compression"),
         ("refine_compression: 0.01", "refine_compression: 0.01, refine_velocity: Some(0.0)", "remesh.refine_velocity"),
         ("refine_compression: 0.01", "refine_compression: 0.01, every: 0", "remesh.every"),
+        ("refine_compression: 0.01", "refine_compression: 0.01, min_change: -0.1", "remesh.min_change"),
     ] {
         let e = err(&good.replace(from, to));
         mentions(&e, &[field, "\"film\""]);
