@@ -9,10 +9,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DVec2, DVec3};
 use skinsim::mesh::imperfection::remesh_under;
-use skinsim::mesh::locate::XyLocator;
-use skinsim::mesh::remesh::sizing::{
-    critical_strain, green_strain, tensor_max, wavelength_term, FaceGeometry, WavelengthSizing,
-};
+use skinsim::mesh::remesh::sizing::{add_wavelength_terms, WavelengthSizing};
 use skinsim::mesh::remesh::RemeshVertex;
 use skinsim::model::*;
 
@@ -199,48 +196,25 @@ fn wavelength_terms(
     let centres: Vec<(DVec2, f64)> =
         kernels.iter().filter(|k| k.upper == layer).map(|k| (k.shape.centre, 2.0 * k.shape.radius)).collect();
     let Some(thickness) = world.get::<Thickness>(layer).map(|t| t.0) else { return Vec::new() };
+    let centroids: Vec<DVec2> =
+        faces.iter().map(|f| f.iter().map(|&i| input[i as usize].uv).sum::<DVec2>() / 3.0).collect();
     let mut terms = vec![DMat2::ZERO; faces.len()];
     let (mut below, mut steps) = (layer, 0);
     while let Some(k) = kernels.iter().find(|k| k.upper == below).filter(|_| steps < kernels.len()) {
         (below, steps) = (k.lower, steps + 1);
-        let Some(LayerStrain { uv, strain, faces: lower_faces }) = layer_strain(world, below) else { continue };
-        let locator = XyLocator::new(&uv, &lower_faces);
-        for (f, term) in faces.iter().zip(&mut terms) {
-            let c = f.iter().map(|&i| input[i as usize].uv).sum::<DVec2>() / 3.0;
-            let nearest = centres.iter().min_by(|a, b| a.0.distance_squared(c).total_cmp(&b.0.distance_squared(c)));
-            let (Some(&(_, lambda)), Some((face, _))) = (nearest, locator.locate(c.extend(0.0))) else { continue };
-            *term = tensor_max(&[*term, wavelength_term(strain[face], lambda, critical_strain(thickness, lambda), w)]);
-        }
+        let (uv, x, lower) = layer_arrays(world, below);
+        add_wavelength_terms(&mut terms, &centroids, &centres, thickness, (&uv, &x, &lower), w);
     }
     terms
 }
 
-/// A layer's material positions (z = 0, for `XyLocator`), the Green strain of each face, and
-/// its faces.
-struct LayerStrain {
-    uv: Vec<DVec3>,
-    strain: Vec<DMat2>,
-    faces: Vec<[u32; 3]>,
-}
-
-/// None for a layer without faces.
-fn layer_strain(world: &World, layer: Entity) -> Option<LayerStrain> {
-    let verts: Vec<Entity> = world.get::<LayerVertices>(layer)?.entities().to_vec();
+/// A layer's material positions, positions and faces (empty for a layer without faces).
+fn layer_arrays(world: &World, layer: Entity) -> (Vec<DVec2>, Vec<DVec3>, Vec<[u32; 3]>) {
+    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
     let index: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
-    let uv: Vec<DVec3> = verts.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0.extend(0.0)).collect();
-    let x: Vec<DVec3> = verts.iter().map(|&v| world.get::<Position>(v).expect("vertex").0).collect();
-    let faces: Vec<[u32; 3]> = world
-        .get::<LayerFaces>(layer)?
-        .entities()
-        .iter()
-        .map(|&f| world.get::<FaceVerts>(f).expect("face").0.map(|v| index[&v]))
-        .collect();
-    if faces.is_empty() {
-        return None;
-    }
-    let strain = faces
-        .iter()
-        .map(|f| green_strain(&FaceGeometry { uv: f.map(|i| uv[i as usize].truncate()), x: f.map(|i| x[i as usize]) }))
-        .collect();
-    Some(LayerStrain { uv, strain, faces })
+    let uv = verts.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0).collect();
+    let x = verts.iter().map(|&v| world.get::<Position>(v).expect("vertex").0).collect();
+    let faces = world.get::<LayerFaces>(layer).map_or(Vec::new(), |f| f.entities().to_vec());
+    let faces = faces.iter().map(|&f| world.get::<FaceVerts>(f).expect("face").0.map(|v| index[&v])).collect();
+    (uv, x, faces)
 }

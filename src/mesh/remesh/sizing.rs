@@ -215,6 +215,35 @@ pub fn wavelength_term(strain: DMat2, lambda: f64, critical: f64, w: &Wavelength
     from_eigen([k * k, 0.0], v)
 }
 
+/// Raises each face's wavelength term (`terms`, by `tensor_max`) to the one a lower layer asks:
+/// the lower layer's strain at the face's material centroid, lambda from the nearest of
+/// `centres` (kernel centre, wavelength), the critical strain from `thickness`. `lower` is the
+/// lower layer's (material positions, positions, faces).
+pub fn add_wavelength_terms(
+    terms: &mut [DMat2],
+    centroids: &[DVec2],
+    centres: &[(DVec2, f64)],
+    thickness: f64,
+    lower: (&[DVec2], &[DVec3], &[[u32; 3]]),
+    w: &WavelengthSizing,
+) {
+    let (uv, x, faces) = lower;
+    if faces.is_empty() {
+        return;
+    }
+    let flat: Vec<DVec3> = uv.iter().map(|u| u.extend(0.0)).collect();
+    let strain: Vec<DMat2> = faces
+        .iter()
+        .map(|f| green_strain(&FaceGeometry { uv: f.map(|i| uv[i as usize]), x: f.map(|i| x[i as usize]) }))
+        .collect();
+    let locator = crate::mesh::locate::XyLocator::new(&flat, faces);
+    for (&c, term) in centroids.iter().zip(terms) {
+        let nearest = centres.iter().min_by(|a, b| a.0.distance_squared(c).total_cmp(&b.0.distance_squared(c)));
+        let (Some(&(_, lambda)), Some((face, _))) = (nearest, locator.locate(c.extend(0.0))) else { continue };
+        *term = tensor_max(&[*term, wavelength_term(strain[face], lambda, critical_strain(thickness, lambda), w)]);
+    }
+}
+
 /// Per-vertex metrics for a surface (REMESH.md): each face's clamped metric, then the
 /// material-area-weighted mean over a vertex's faces. `extra`, when not empty, holds one more
 /// term per face (the wavelength term), combined by `tensor_max` before the clamp.
