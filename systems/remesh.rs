@@ -133,13 +133,13 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
             f.iter().for_each(|&v| unsettled[v as usize] = true);
         }
     }
-    if settings.settle {
+    if settings.settle || settings.local_solve {
         // The changed region grown by `settle_rings` rings of faces: its boundary then sits
         // where the mesh did not change, so the settle does not pull old vertices against new ones
         // it cannot move.
         skinsim::mesh::grow_rings(&out.faces, &mut unsettled, settings.settle_rings);
         for (i, _) in unsettled.iter().enumerate().filter(|(_, u)| **u) {
-            world.entity_mut(ent[i]).insert(Unsettled);
+            world.entity_mut(ent[i]).insert(Unsettled { sweeps: settings.settle, solve: settings.local_solve });
         }
     }
     // Edges by endpoints and, for hinges, the opposite vertices: a changed quad gets a new edge.

@@ -18,6 +18,7 @@ pub fn solve_patches(
         .par_iter_mut()
         .map(|(patch, settings, packed, index, anchors)| {
             let packed: &mut PackedPatch = packed;
+            let local = packed.local.take();
             let out = solve_frame(packed, settings, clock.dt);
             let size = PatchSize {
                 vertices: index.vertices.len(),
@@ -26,13 +27,13 @@ pub fn solve_patches(
                 inverted: packed.inverted_tets(),
                 constraints: packed.constraints.rows(),
             };
-            (patch.name.clone(), size, out, anchors.copied())
+            (patch.name.clone(), size, out, anchors.copied(), local)
         })
         .collect();
     report.patches.clear();
-    for (name, size, out, anchors) in outcomes {
+    for (name, size, out, anchors, local) in outcomes {
         report.patches.push(match out {
-            Ok(outcome) => PatchReport::solved(name, size, &outcome, anchors),
+            Ok(outcome) => PatchReport { local_solve: local, ..PatchReport::solved(name, size, &outcome, anchors) },
             Err(reason) => {
                 if failure.0.is_none() {
                     failure.0 = Some(format!("frame {}: patch \"{name}\": {reason}", clock.frame));

@@ -184,6 +184,7 @@ fn the_trust_region_lowers_the_merit_at_every_step_of_a_buckling_frame() {
             constraints: start.constraints.clone(),
             length_scale: start.length_scale,
             cache: Default::default(),
+            local: None,
         };
         let mut settings = scene.patches[0].solver.clone();
         (settings.max_iterations, settings.globalization) = (200, globalization);

@@ -556,3 +556,35 @@ fn the_wavelength_term_refines_before_the_first_solve() {
     assert_eq!(report.frame, 0, "no remesh before the first solve without the term");
     assert!(widest > 1.4e-3, "{widest}");
 }
+
+/// Issue 26 item 2: with `local_solve`, each remesh's changed region is solved to equilibrium
+/// (the rest held) before the frame's solve; the frames still converge with the constraints
+/// held and the layer consistent, and every frame after a changing remesh reports a converged
+/// region solve over its vertices.
+#[test]
+fn a_region_solve_after_each_remesh_converges_and_is_reported() {
+    let edits = [("refine_compression: 0.2)", "refine_compression: 0.2, local_solve: true)")];
+    let mut scene = variant(&scratch_dir("local_solve"), &edits);
+    scene.scene.frames = 4;
+    let mut sim = Simulation::new(&scene);
+    let dermis = layer(&mut sim, "dermis");
+    let mut solved = 0;
+    for frame in 1..=scene.scene.frames {
+        let s = sim.step();
+        let p = &s.patches[0];
+        assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
+        assert!(p.constraint_violation < 1e-9, "frame {frame}: {}", p.constraint_violation);
+        check_layer(&mut sim, dermis, 24e-3 * 12e-3);
+        let changed = sim
+            .world
+            .get::<RemeshReport>(dermis)
+            .is_some_and(|r| r.frame == u64::from(frame) && r.stats.splits + r.stats.collapses + r.stats.flips > 0);
+        println!("frame {frame}: {} Newton iterations, region solve {:?}", p.newton_iterations, p.local_solve);
+        assert_eq!(p.local_solve.is_some(), changed, "frame {frame}");
+        if let Some(r) = p.local_solve {
+            assert!(r.converged && r.vertices > 0 && r.iterations > 0, "frame {frame}: {r:?}");
+            solved += 1;
+        }
+    }
+    assert!(solved >= 2, "{solved} region solves");
+}

@@ -143,6 +143,8 @@ pub struct RemeshSettings {
     pub settle: bool,
     /// Rings of neighbours settled with them.
     pub settle_rings: u32,
+    /// Then solve them to equilibrium, the rest held (`solve::local`).
+    pub local_solve: bool,
     /// A remesh splitting or collapsing fewer than this fraction of the faces' count is dropped.
     pub min_change: f64,
     /// Wavelength-aware refinement from the layer's kernels and driver (issue 26); the first
@@ -165,7 +167,11 @@ pub struct RemeshReport {
 
 /// A vertex of a face a remesh created, to be relaxed by the Settle stage before the solve.
 #[derive(Component, Clone, Copy, Debug, Default)]
-pub struct Unsettled;
+pub struct Unsettled {
+    /// Relax by sweeps (`solve::settle`), then solve the region (`solve::local`).
+    pub sweeps: bool,
+    pub solve: bool,
+}
 
 /// Vertex -> Layer.
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]

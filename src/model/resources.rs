@@ -129,6 +129,9 @@ pub struct PatchReport {
     /// KCK18 anchors: what this frame's walk (or projection) did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub anchors: Option<super::AnchorReport>,
+    /// The Settle stage's region solve before this frame's (remeshed layers with `local_solve`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub local_solve: Option<crate::solve::local::LocalReport>,
 }
 
 /// A patch's size in a frame, for its report.
@@ -174,6 +177,7 @@ impl PatchReport {
             inverted: size.inverted,
             solve_breakdown_ms: o.counters,
             anchors,
+            local_solve: None,
         }
     }
 

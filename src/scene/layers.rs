@@ -261,6 +261,7 @@ impl Builder {
             every: r.every,
             settle: r.settle,
             settle_rings: r.settle_rings,
+            local_solve: r.local_solve,
             min_change: r.min_change,
             wavelength,
         })

@@ -10,6 +10,7 @@ pub mod error;
 pub mod eval;
 pub mod kkt;
 pub mod linear;
+pub mod local;
 pub mod newton;
 pub mod ordering;
 pub mod packed;

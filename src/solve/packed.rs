@@ -25,6 +25,8 @@ pub struct PackedPatch {
     /// Characteristic length (bounding-box diagonal of the positions at the rebuild), m.
     pub length_scale: f64,
     pub cache: SolverCache,
+    /// What the Settle stage's region solve did this frame (issue 26 item 2), for the report.
+    pub local: Option<super::local::LocalReport>,
 }
 
 /// Per packed vertex: what Newton iterates on.
@@ -72,6 +74,10 @@ impl PackedState {
 pub struct SolverCache {
     pub system: Option<(Pattern, CholeskySolver)>,
     pub kkt: Option<KktSystem>,
+    /// The kernel rows' multipliers at the end of the last solve: the next solve's first
+    /// Lagrangian gradient (kept across a remesh while the rows' count holds: a row is one
+    /// kernel's, in the patch's kernel order).
+    pub multipliers: Vec<f64>,
 }
 
 impl SolverCache {
@@ -127,6 +133,7 @@ impl PackedPatch {
             elements: el,
             constraints: Constraints::default(),
             cache: SolverCache::default(),
+            local: None,
         }
     }
 }

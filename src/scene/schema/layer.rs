@@ -70,6 +70,11 @@ pub struct RemeshSpec {
     /// the changed faces, the policy before it).
     #[serde(default = "default_settle_rings")]
     pub settle_rings: u32,
+    /// Then solve those vertices (the changed faces' and the rings') to equilibrium with the
+    /// patch's own Newton, the rest of the patch held, before the frame's solve (issue 26 item
+    /// 2; default false, the policy before it).
+    #[serde(default)]
+    pub local_solve: bool,
     /// Keep the mesh unless a remesh would split or collapse at least this fraction of its
     /// faces' count (issue 26 item 3: refine mostly; default 0, every remesh kept).
     #[serde(default)]
