@@ -239,18 +239,25 @@ fn variant(dir: &std::path::Path, edits: &[(&str, &str)]) -> skinsim::scene::Bui
     skinsim::scene::load_str(&text, &dir.join("scene.ron")).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// Runs a scene and checks every frame: converged, the constraints held, the layer consistent.
+/// Runs a scene and checks every frame (`step_checked`).
 fn run_checked(scene: &skinsim::scene::BuiltScene) -> Simulation {
     let mut sim = Simulation::new(scene);
     let dermis = layer(&mut sim, "dermis");
     for frame in 1..=scene.scene.frames {
-        let s = sim.step();
-        let p = &s.patches[0];
-        assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
-        assert!(p.constraint_violation < 1e-9, "frame {frame}: {}", p.constraint_violation);
-        check_layer(&mut sim, dermis, 24e-3 * 12e-3);
+        step_checked(&mut sim, frame, dermis);
     }
     sim
+}
+
+/// One frame of the remesh scene, checked: converged, the constraints held, the layer
+/// consistent.
+fn step_checked(sim: &mut Simulation, frame: u32, dermis: Entity) -> PatchReport {
+    let s = sim.step();
+    let p = s.patches[0].clone();
+    assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
+    assert!(p.constraint_violation < 1e-9, "frame {frame}: {}", p.constraint_violation);
+    check_layer(sim, dermis, 24e-3 * 12e-3);
+    p
 }
 
 /// Hard case (issue 5 point 8): remeshing while the base is compressed to half its length.
@@ -570,11 +577,7 @@ fn a_region_solve_after_each_remesh_converges_and_is_reported() {
     let dermis = layer(&mut sim, "dermis");
     let mut solved = 0;
     for frame in 1..=scene.scene.frames {
-        let s = sim.step();
-        let p = &s.patches[0];
-        assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
-        assert!(p.constraint_violation < 1e-9, "frame {frame}: {}", p.constraint_violation);
-        check_layer(&mut sim, dermis, 24e-3 * 12e-3);
+        let p = step_checked(&mut sim, frame, dermis);
         let changed = sim
             .world
             .get::<RemeshReport>(dermis)
