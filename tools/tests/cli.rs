@@ -368,21 +368,21 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     assert_eq!(csv.lines().count(), 7);
     let svg = std::fs::read_to_string(dir.join("speed_error.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("case 7, graded substrate"));
-    // LK14 (issues 5 and 26): uniform and adaptive series of four cases, two settings each, with
-    // the map and height errors, and each run's wrinkle map.
+    // LK14 (issues 5 and 26): uniform and adaptive series of four cases, two settings each (one
+    // for the localized case), with the map and height errors, and each run's wrinkle map.
     let lk14 = std::fs::read_to_string(dir.join("speed_error_lk14.md")).unwrap();
     let rows: Vec<&str> =
         lk14.lines().filter(|l| ["| case", "| fig", "| localized"].iter().any(|p| l.starts_with(p))).collect();
-    assert_eq!(rows.len(), 16, "{lk14}");
-    assert_eq!(rows.iter().filter(|l| l.contains("adaptive")).count(), 8, "{lk14}");
+    assert_eq!(rows.len(), 14, "{lk14}");
+    assert_eq!(rows.iter().filter(|l| l.contains("adaptive")).count(), 7, "{lk14}");
     assert!(lk14.contains("map error (deg)") && lk14.contains("height error"), "{lk14}");
-    assert_eq!(std::fs::read_dir(dir.join("maps")).unwrap().count(), 16);
+    assert_eq!(std::fs::read_dir(dir.join("maps")).unwrap().count(), 14);
     let svg = std::fs::read_to_string(dir.join("speed_error_lk14.svg")).unwrap();
     assert!(svg.starts_with("<svg"));
     // Axis labels with units, the reference marked, log ticks without float noise.
     assert!(svg.contains("time per frame (ms)") && svg.contains("reference (finest uniform run)"), "{svg}");
     assert!(!svg.contains("0000000"), "a tick label prints float noise");
-    assert_eq!(std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap().lines().count(), 17);
+    assert_eq!(std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap().lines().count(), 15);
     for png in ["speed_error.png", "speed_error_lk14.png"] {
         let image = image::open(dir.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert_eq!(image.width(), 1000, "{png}");
