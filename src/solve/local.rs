@@ -7,9 +7,8 @@
 //! vertex of an element or a kernel row kept held, and the kernel rows (LK14 eq. 4.1) of the
 //! kernels with at least `MIN_SHARE` of their weight on free vertices. A kernel that only
 //! grazes the region would leave rows over one or two free vertices, several of them alike (a
-//! singular KKT matrix): its rows are left to the frame's solve. (Holding such a kernel's
-//! vertices instead erodes the region to a few percent of it, and growing the region by whole
-//! kernel supports first makes it most of the patch: `README.md`.)
+//! singular KKT matrix): its rows are left to the frame's solve. (Other rules measured:
+//! `src/mesh/remesh/README.md`, "Iterations a remesh adds".)
 
 use super::constraints::{Constraints, KernelRows};
 use super::elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
@@ -91,9 +90,10 @@ fn region(packed: &PackedPatch, which: &[u32]) -> Vec<bool> {
     free
 }
 
-/// Whether a kernel's rows belong to the region's problem: on each side that the region
-/// touches, at least `MIN_SHARE` of the weight on free vertices (a lower vertex also moves the
-/// row through the normals of its neighbours' faces).
+/// Whether a kernel's rows belong to the region's problem: a free vertex among its terms, and on
+/// each side with one, at least `MIN_SHARE` of the weight on free vertices. (A kernel reached
+/// only through the faces around its lower vertices, whose normals move with the region, is
+/// left to the frame's solve.)
 fn kept(k: &KernelRows, free: &[bool]) -> bool {
     let share = |side: &mut dyn Iterator<Item = (u32, f64)>| {
         let (mut on, mut total) = (0.0, 0.0);
@@ -109,10 +109,8 @@ fn kept(k: &KernelRows, free: &[bool]) -> bool {
     };
     let upper = share(&mut k.upper.iter().copied());
     let lower = share(&mut k.lower.iter().map(|t| (t.v, t.w)));
-    let rings = k.lower.iter().flat_map(|t| t.ring.iter().flatten()).any(|&v| free[v as usize]);
-    let touched = upper > 0.0 || lower > 0.0 || rings;
     let enough = |s: f64| s == 0.0 || s >= MIN_SHARE;
-    touched && enough(upper) && enough(lower) && (upper > 0.0 || lower > 0.0)
+    (upper > 0.0 || lower > 0.0) && enough(upper) && enough(lower)
 }
 
 /// The small problem over the free vertices and everything their elements and kernels touch
@@ -129,11 +127,11 @@ fn sub_patch(packed: &PackedPatch, free: &[bool]) -> (PackedPatch, Vec<u32>) {
         touches
     };
     let membranes: Vec<usize> = (0..el.membranes.len()).filter(|&i| keep(&el.membranes[i].v)).collect();
-    // (a periodic seam's hinge also reads its image's two vertices)
+    // (a periodic seam's hinge also reads the two vertices of its image's period vector)
     let hinges: Vec<usize> = (0..el.hinges.len())
-        .filter(|&i| {
-            let h = &el.hinges[i];
-            keep(&h.v) && h.image.is_none_or(|(a, b)| keep(&[h.v[0], a, b]))
+        .filter(|&i| match el.hinges[i] {
+            HingeElem { v, image: Some((a, b)), .. } => keep(&[v[0], v[1], v[2], v[3], a, b]),
+            HingeElem { v, image: None, .. } => keep(&v),
         })
         .collect();
     let quadratic: Vec<usize> = (0..el.quadratic.len()).filter(|&i| keep(el.quadratic.stencil(i).0)).collect();
