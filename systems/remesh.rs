@@ -9,6 +9,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DVec2, DVec3};
 use skinsim::mesh::imperfection::remesh_under;
+use skinsim::mesh::remesh::identity::{match_keys, sorted};
 use skinsim::mesh::remesh::sizing::{add_wavelength_terms, WavelengthSizing};
 use skinsim::mesh::remesh::RemeshVertex;
 use skinsim::model::*;
@@ -51,12 +52,6 @@ pub fn remesh_layers(world: &mut World) {
 
 /// The longest edge a kernel support allows, relative to the kernel radius.
 const KERNEL_EDGES: f64 = 0.5;
-
-/// Sorted vertex entities: the identity of a face or an edge across a remesh.
-fn key<const N: usize>(mut v: [Entity; N]) -> [Entity; N] {
-    v.sort_unstable();
-    v
-}
 
 fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, frame: u32) {
     let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
@@ -123,15 +118,13 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
                 .id(),
         })
         .collect();
-    // Faces by vertex set.
-    let mut by_key: HashMap<[Entity; 3], Entity> = tris.iter().zip(&old_faces).map(|(t, &f)| (key(*t), f)).collect();
+    let to = |v: [u32; 2]| v.map(|i| ent[i as usize]);
+    let new_tris: Vec<[Entity; 3]> = out.faces.iter().map(|f| f.map(|i| ent[i as usize])).collect();
+    let (fresh, lost_faces) = match_keys(tris.iter().map(|t| sorted(*t)), new_tris.iter().map(|t| sorted(*t)));
     let mut unsettled = vec![false; out.vertices.len()];
-    for f in &out.faces {
-        let tri = f.map(|i| ent[i as usize]);
-        if by_key.remove(&key(tri)).is_none() {
-            world.spawn((FaceVerts(tri), FaceOf(layer)));
-            f.iter().for_each(|&v| unsettled[v as usize] = true);
-        }
+    for ((f, &tri), _) in out.faces.iter().zip(&new_tris).zip(&fresh).filter(|(_, n)| **n) {
+        world.spawn((FaceVerts(tri), FaceOf(layer)));
+        f.iter().for_each(|&v| unsettled[v as usize] = true);
     }
     if settings.settle || settings.local_solve {
         // The changed region grown by `settle_rings` rings of faces: its boundary then sits
@@ -142,34 +135,31 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
             world.entity_mut(ent[i]).insert(Unsettled { sweeps: settings.settle, solve: settings.local_solve });
         }
     }
-    // Edges by endpoints and, for hinges, the opposite vertices: a changed quad gets a new edge.
-    let quad = |e: &skinsim::mesh::EdgeInfo| {
-        let opposite = e.is_interior().then(|| key(e.opposite.map(|i| ent[i as usize])));
-        (key(e.v.map(|i| ent[i as usize])), opposite)
-    };
-    let mut old: HashMap<([Entity; 2], Option<[Entity; 2]>), Entity> = old_edges
+    // Edges: with bending, a hinge's opposite vertices are part of its identity.
+    let bending = world.get::<Bending>(layer).is_some();
+    let old_keys: Vec<([Entity; 2], Option<[Entity; 2]>)> = old_edges
         .iter()
         .map(|&e| {
             let r = world.entity(e);
-            let ends = key(r.get::<EdgeVerts>().expect("edge").0);
-            let opposite = r.get::<Hinge>().map(|h| key(h.opposite)).or(r.get::<EdgeOpposite>().map(|o| key(o.0)));
-            ((ends, opposite), e)
+            let opposite = r.get::<Hinge>().map(|h| h.opposite).or(r.get::<EdgeOpposite>().map(|o| o.0));
+            (sorted(r.get::<EdgeVerts>().expect("edge").0), opposite.map(sorted))
         })
         .collect();
-    let bending = world.get::<Bending>(layer).is_some();
-    for e in skinsim::mesh::edges(&out.faces) {
-        let (ends, opposite) = quad(&e);
-        let id = if bending { (ends, opposite) } else { (ends, None) };
-        if old.remove(&id).is_some() {
-            continue;
-        }
-        let mut spawned = world.spawn((EdgeVerts(e.v.map(|i| ent[i as usize])), EdgeOf(layer)));
-        if let (true, true) = (bending, e.is_interior()) {
-            spawned.insert(EdgeOpposite(e.opposite.map(|i| ent[i as usize])));
+    let new_edges = skinsim::mesh::edges(&out.faces);
+    let opposite = |e: &skinsim::mesh::EdgeInfo| (bending && e.is_interior()).then(|| to(e.opposite));
+    let new_keys = new_edges.iter().map(|e| (sorted(to(e.v)), opposite(e).map(sorted)));
+    let (fresh, lost_edges) = match_keys(old_keys, new_keys);
+    for (e, _) in new_edges.iter().zip(&fresh).filter(|(_, n)| **n) {
+        let mut spawned = world.spawn((EdgeVerts(to(e.v)), EdgeOf(layer)));
+        if let Some(o) = opposite(e) {
+            spawned.insert(EdgeOpposite(o));
         }
     }
-    for entity in by_key.into_values().chain(old.into_values()) {
-        world.despawn(entity);
+    for i in lost_faces {
+        world.despawn(old_faces[i]);
+    }
+    for i in lost_edges {
+        world.despawn(old_edges[i]);
     }
     for (v, _) in verts.iter().zip(&alive).filter(|(_, a)| !**a) {
         world.despawn(*v);
@@ -177,14 +167,9 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
     world.get_mut::<TopologyEpoch>(layer).expect("layer").0 += 1;
 }
 
-/// The wavelength term of each face of `layer` (issue 26 item 1; `sizing::wavelength_term`):
+/// The wavelength term of each face of `layer` (issue 26 item 1; `sizing::add_wavelength_terms`):
 /// lambda(x) the wavelength of the nearest kernel holding the layer (twice its radius, LK14
-/// 4.1), and the strain the one the layer is driven to: each coupling ties a layer's kernel
-/// averages to the layer below (LK14 eq. 4.1), so every layer down the kernel chain carries the
-/// membrane strain the layer's mean surface follows. The most compressive of them counts: the
-/// kinematic bottom moves first (before any solve), the solved layers between spread its
-/// compression (the localized pinch's epidermis wrinkles out to about twice the pinch radius,
-/// where its base does not move).
+/// 4.1), the strain that of every layer below it (`coupling::kernels::layers_below`).
 fn wavelength_terms(
     world: &mut World,
     layer: Entity,
@@ -199,9 +184,7 @@ fn wavelength_terms(
     let centroids: Vec<DVec2> =
         faces.iter().map(|f| f.iter().map(|&i| input[i as usize].uv).sum::<DVec2>() / 3.0).collect();
     let mut terms = vec![DMat2::ZERO; faces.len()];
-    let (mut below, mut steps) = (layer, 0);
-    while let Some(k) = kernels.iter().find(|k| k.upper == below).filter(|_| steps < kernels.len()) {
-        (below, steps) = (k.lower, steps + 1);
+    for below in skinsim::coupling::kernels::layers_below(&kernels, layer) {
         let (uv, x, lower) = layer_arrays(world, below);
         add_wavelength_terms(&mut terms, &centroids, &centres, thickness, (&uv, &x, &lower), w);
     }

@@ -296,6 +296,26 @@ pub fn build_kernels(points: &[DVec2], faces: &[[u32; 3]], wavelength: &[f64], s
         .collect()
 }
 
+/// The layers below `layer` along its kernels' couplings, nearest first (each coupling ties a
+/// layer's kernel averages to the layer below, LK14 eq. 4.1): every one of them carries the
+/// membrane strain the layer's mean surface follows. The remesher's wavelength term reads the
+/// most compressive of them (issue 26 item 1): the kinematic bottom moves first, before any
+/// solve; the solved layers between spread its compression (the localized pinch's epidermis
+/// wrinkles out to about twice the pinch radius, where its base does not move). A cycle of
+/// couplings ends the walk.
+pub fn layers_below(
+    kernels: &[crate::model::Kernel],
+    layer: bevy_ecs::entity::Entity,
+) -> Vec<bevy_ecs::entity::Entity> {
+    let mut out = Vec::new();
+    let mut below = layer;
+    while let Some(k) = kernels.iter().find(|k| k.upper == below).filter(|_| out.len() < kernels.len()) {
+        below = k.lower;
+        out.push(below);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

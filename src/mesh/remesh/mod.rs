@@ -5,6 +5,7 @@
 //! Plain arrays in, plain arrays out: the Remesh system copies a layer out of the ECS, calls
 //! `remesh`, and spawns or despawns entities from the result's `origin` map.
 
+pub mod identity;
 mod ops;
 pub mod sizing;
 
