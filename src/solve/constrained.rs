@@ -3,10 +3,11 @@
 //! line search (rho >= 2 max |lambda| keeps the step a descent direction), convergence when the
 //! Lagrangian gradient is below the tolerance and every constraint below CONSTRAINT_TOLERANCE.
 //!
-//! No saddle test here: the unconstrained Hessian of a held shell is indefinite at every
-//! buckled state, so `stability_check` applies to unconstrained patches only; held shells
-//! leave the flat state through the scene's perturbation. (Variants measured and rejected:
-//! `README.md`.)
+//! With `stability_check`, a converged quasistatic frame is tested for stability on the null
+//! space of the kernels' Jacobian (`stability::test_constrained`: the KKT matrix's inertia) and
+//! left along the most negative curvature there when unstable; the held shell's own Hessian is
+//! indefinite at every buckled state, which alone does not count. (Variants measured and
+//! rejected: `README.md`.)
 
 use glam::DVec3;
 
@@ -14,11 +15,12 @@ use super::constraints::Constraints;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::kkt::KktSystem;
-use super::newton::{line_search, step, FrameOutcome, FrameStart, ARMIJO};
+use super::newton::{line_search, step, FrameOutcome, FrameStart, ARMIJO, MAX_ESCAPES};
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::progress::Progress;
 use super::settings::{Globalization, SolveMode, SolverSettings};
+use super::stability::{self, Verdict};
 use super::trust_region::{Iterate, TrustRegion};
 use crate::physics::psd::Filter;
 use crate::physics::Projection;
@@ -99,6 +101,22 @@ pub(super) fn newton_kkt(
         // (recorded at every iterate; converged only with the constraints met too)
         if progress.record(residual) && violation <= CONSTRAINT_TOLERANCE {
             out.converged = true;
+            if settings.stability_check && inertia.is_none() && out.escapes < MAX_ESCAPES {
+                if filter != Filter::Exact {
+                    assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut grad, &mut values);
+                }
+                let clock = std::time::Instant::now();
+                let merit = |x: &[DVec3]| energy(&packed.elements, x).total() + rho * constraints.violation_l1(x);
+                let left = leave_saddle(packed, pattern, kkt, &values, &jac, &merit);
+                out.counters.stability_ms += clock.elapsed().as_secs_f64() * 1e3;
+                if let Some(x) = left {
+                    packed.state.x = x;
+                    out.escapes += 1;
+                    out.converged = false;
+                    progress.restart();
+                    continue;
+                }
+            }
             break Ok(());
         }
         if out.iterations >= settings.max_iterations {
@@ -197,6 +215,26 @@ pub(super) fn newton_kkt(
         packed.cache.multipliers = lambda;
     }
     result.map(|_| out)
+}
+
+/// At a converged constrained equilibrium: a lower-merit state along the most negative
+/// curvature of H on the null space of J when there is one (a constrained saddle: the
+/// compressed flat sheet past its buckling load is one), None at a stable equilibrium.
+fn leave_saddle(
+    packed: &PackedPatch,
+    pattern: &Pattern,
+    kkt: &mut KktSystem,
+    h: &[f64],
+    jac: &[f64],
+    merit: &dyn Fn(&[DVec3]) -> f64,
+) -> Option<Vec<DVec3>> {
+    match stability::test_constrained(pattern, kkt, h, jac)? {
+        Verdict::Stable => None,
+        Verdict::Unstable { direction, .. } => {
+            let phi = merit(&packed.state.x);
+            stability::escape(&packed.state.x, &pattern.dof, &direction, phi, packed.length_scale, merit)
+        }
+    }
 }
 
 /// Second-order correction (the Maratos effect: near the solution a full SQP step can raise the

@@ -21,7 +21,7 @@ const MAX_HALVINGS: u32 = 40;
 /// Round-off band of an energy sum, relative to its elements' energy at unit strain.
 const ROUND_OFF: f64 = 1e-13;
 /// Saddles left per frame at most.
-const MAX_ESCAPES: u32 = 4;
+pub(super) const MAX_ESCAPES: u32 = 4;
 /// Mixed precision: a Newton step is refined until |H dx + g| <= REFINED |g|, with at most
 /// MAX_REFINEMENTS conjugate-gradient iterations (an f64 factor solves to ~1e-12).
 const REFINED: f64 = 1e-10;

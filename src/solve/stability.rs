@@ -11,6 +11,7 @@
 use glam::DVec3;
 
 use super::eigen;
+use super::kkt::KktSystem;
 use super::linear::{symmetric_product_into, CholeskySolver};
 use super::pattern::Pattern;
 
@@ -28,6 +29,8 @@ const TOLERANCE: f64 = 1e-2;
 /// there against 13 s for a definite one).
 const SHIFT: f64 = 2.0;
 const SHIFT_TRIES: u32 = 16;
+/// Inverse-iteration steps that return the constrained test's direction to the null space.
+const NULL_SPACE_STEPS: u32 = 4;
 /// A curvature below this fraction of the largest diagonal is round-off (a semidefinite H).
 const ROUND_OFF_CURVATURE: f64 = 1e-13;
 /// The escape search: first step (of the patch size), growth per try, tries per sign.
@@ -105,6 +108,55 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<V
         direction: pair.vector,
         eigen_iterations: pair.iterations,
     })
+}
+
+/// The test at an equilibrium of the kernels' constrained problem (LK14 eq. 5.1): stable
+/// exactly when H is positive definite on the null space of the constraint Jacobian `jac`, i.e.
+/// when the KKT matrix has m negative eigenvalues (`KktSystem::unstable_directions`). A held
+/// shell's own H is indefinite at every buckled state; only the null-space curvature counts.
+/// When unstable, the most negative null-space curvature comes from LOBPCG on H preconditioned
+/// by K(mu)^-1 [r; 0] (the KKT factor at the smallest definite shift), whose solutions lie in
+/// that null space: the direction moves no kernel average to first order. None when the test
+/// cannot tell (Schur, or an LDL^T breakdown). Replaces the KKT factorization.
+pub fn test_constrained(pattern: &Pattern, kkt: &mut KktSystem, h: &[f64], jac: &[f64]) -> Option<Verdict> {
+    let negative = kkt.unstable_directions(pattern, h, jac)?;
+    tracing::debug!(negative, "constrained inertia");
+    if negative == 0 {
+        return Some(Verdict::Stable);
+    }
+    if !kkt.factorize_definite(pattern, h, jac) {
+        return None;
+    }
+    let n = pattern.n;
+    let max_diag = pattern.diag.iter().fold(0.0f64, |m, &d| m.max(h[d as usize].abs()));
+    let mut apply = |x: &[f64], y: &mut [f64]| symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, h, x, y);
+    let mut scratch = vec![0.0; n];
+    let mut precondition = |r: &mut [f64]| {
+        if kkt.solve_null(r, &mut scratch).is_ok() {
+            r.copy_from_slice(&scratch);
+        }
+    };
+    // A start in the null space: the preconditioner applied to a fixed pseudo-random vector.
+    let mut guess: Vec<f64> = (0..n).map(|i| ((i as f64 + 1.0) * 12.9898).sin().fract() - 0.5).collect();
+    precondition(&mut guess);
+    let pair = eigen::smallest(n, BLOCK, &mut apply, &mut precondition, Some(&guess), MAX_ITERATIONS, TOLERANCE);
+    // Rayleigh-Ritz may pick up round-off outside the null space, where H can be negative too
+    // (measured on a 3-dimensional null space: the Ritz vector ended mostly there): inverse
+    // iteration steps with the same factor put the direction back in it.
+    let mut direction = pair.vector;
+    for _ in 0..NULL_SPACE_STEPS {
+        precondition(&mut direction);
+        let length = direction.iter().map(|v| v * v).sum::<f64>().sqrt();
+        direction.iter_mut().for_each(|v| *v /= length);
+    }
+    let mut hd = vec![0.0; n];
+    apply(&direction, &mut hd);
+    let curvature: f64 = direction.iter().zip(&hd).map(|(a, b)| a * b).sum();
+    tracing::debug!(negative, curvature, iterations = pair.iterations, residual = pair.residual, "unstable");
+    if curvature.is_nan() || curvature >= -ROUND_OFF_CURVATURE * max_diag {
+        return Some(Verdict::Stable);
+    }
+    Some(Verdict::Unstable { negative, curvature, direction, eigen_iterations: pair.iterations })
 }
 
 /// A lower-energy state along +-`direction` from `x` (energy `phi`): the step grows by GROWTH
