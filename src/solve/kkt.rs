@@ -236,6 +236,13 @@ impl KktSystem {
         }
     }
 
+    /// Whether the last successful step's KKT matrix had the stable inertia at a shift of
+    /// round-off size (at most SHIFT_MIN): H was then positive definite on the null space of J
+    /// up to round-off, as the stability test would find it a step later.
+    pub fn stable_at_round_off(&self) -> bool {
+        self.last_shift <= SHIFT_MIN
+    }
+
     /// The next shift after `shift` failed the inertia test; None past SHIFT_MAX (and the
     /// remembered shift is forgotten).
     pub fn raise(&mut self, shift: f64) -> Option<f64> {
