@@ -14,6 +14,7 @@ pub mod log_read;
 pub mod motion;
 pub mod properties;
 pub mod remesh;
+mod remesh_write;
 pub mod schedule;
 pub mod settle;
 pub mod simulation;

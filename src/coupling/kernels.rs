@@ -296,21 +296,18 @@ pub fn build_kernels(points: &[DVec2], faces: &[[u32; 3]], wavelength: &[f64], s
         .collect()
 }
 
-/// The layers below `layer` along its kernels' couplings, nearest first (each coupling ties a
-/// layer's kernel averages to the layer below, LK14 eq. 4.1): every one of them carries the
-/// membrane strain the layer's mean surface follows. The remesher's wavelength term reads the
-/// most compressive of them (issue 26 item 1): the kinematic bottom moves first, before any
-/// solve; the solved layers between spread its compression (the localized pinch's epidermis
-/// wrinkles out to about twice the pinch radius, where its base does not move). A cycle of
-/// couplings ends the walk.
-pub fn layers_below(
-    kernels: &[crate::model::Kernel],
-    layer: bevy_ecs::entity::Entity,
-) -> Vec<bevy_ecs::entity::Entity> {
+/// The layers below `layer` along the kernels' couplings (upper, lower), nearest first (each
+/// coupling ties a layer's kernel averages to the layer below, LK14 eq. 4.1): every one of them
+/// carries the membrane strain the layer's mean surface follows. The remesher's wavelength term
+/// reads the most compressive of them (issue 26 item 1): the kinematic bottom moves first,
+/// before any solve; the solved layers between spread its compression (the localized pinch's
+/// epidermis wrinkles out to about twice the pinch radius, where its base does not move). A
+/// cycle of couplings ends the walk.
+pub fn layers_below<L: Copy + PartialEq>(couplings: &[(L, L)], layer: L) -> Vec<L> {
     let mut out = Vec::new();
     let mut below = layer;
-    while let Some(k) = kernels.iter().find(|k| k.upper == below).filter(|_| out.len() < kernels.len()) {
-        below = k.lower;
+    while let Some(&(_, lower)) = couplings.iter().find(|c| c.0 == below).filter(|_| out.len() < couplings.len()) {
+        below = lower;
         out.push(below);
     }
     out
@@ -319,6 +316,17 @@ pub fn layers_below(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn layers_below_walk_the_chain_nearest_first_and_stop_at_a_cycle() {
+        // epidermis 0 over dermis 1 over base 2; layer 3 couples to nothing.
+        let chain = [(1, 2), (0, 1), (0, 1)];
+        assert_eq!(layers_below(&chain, 0), [1, 2]);
+        assert_eq!(layers_below(&chain, 2), Vec::<i32>::new());
+        assert_eq!(layers_below(&chain, 3), Vec::<i32>::new());
+        let cycle = [(0, 1), (1, 0)];
+        assert!(layers_below(&cycle, 0).len() <= cycle.len());
+    }
     use crate::mesh::{grid, GridPattern};
 
     fn sheet(cells: u32) -> crate::mesh::SurfaceMesh {

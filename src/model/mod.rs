@@ -152,6 +152,20 @@ pub struct RemeshSettings {
     pub wavelength: Option<crate::mesh::remesh::sizing::WavelengthSizing>,
 }
 
+impl RemeshSettings {
+    /// Whether the layer is remeshed in `frame` (frames count from 1). The first frame is
+    /// solved on the scene's own mesh, as in ARCSim (remesh after each step): a remesh of the
+    /// unsolved start sees no curvature and no compression, so it would coarsen everything and
+    /// the wrinkle mode would be chosen on the coarsest mesh allowed (measured: LK14 case 10
+    /// then ends 13 % long). The wavelength term sees the compression the driver imposes
+    /// before any solve: with it the first remesh comes before the first solve (issue 26
+    /// item 1).
+    pub fn due(&self, frame: u32) -> bool {
+        let first = if self.wavelength.is_some() { 1 } else { 2 };
+        frame >= first && (frame - first).is_multiple_of(self.every)
+    }
+}
+
 /// What the last remesh of a layer did, and the layer's size after it.
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct RemeshReport {
@@ -161,6 +175,27 @@ pub struct RemeshReport {
     pub stats: crate::mesh::remesh::RemeshStats,
     pub vertices: u32,
     pub faces: u32,
+}
+
+impl RemeshReport {
+    /// The report of `out`, a remesh in `frame` under `size_max` of a layer of `before`
+    /// (vertices, faces); a remesh too small to apply reports no change and the old size.
+    pub fn new(
+        frame: u32,
+        size_max: f64,
+        out: &crate::mesh::remesh::Remeshed,
+        small: bool,
+        before: (usize, usize),
+    ) -> Self {
+        let (vertices, faces) = if small { before } else { (out.vertices.len(), out.faces.len()) };
+        RemeshReport {
+            frame: frame as u64,
+            size_max,
+            stats: if small { Default::default() } else { out.stats },
+            vertices: vertices as u32,
+            faces: faces as u32,
+        }
+    }
 }
 
 // ---------------------------------------------------------------- vertices

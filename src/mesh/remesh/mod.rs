@@ -32,7 +32,21 @@ pub struct RemeshParams {
     pub curved_splits: bool,
 }
 
+/// The longest edge a kernel support allows, relative to the kernel radius.
+pub const KERNEL_EDGES: f64 = 0.5;
+
 impl RemeshParams {
+    /// These thresholds with `size_max` capped by the radii of the kernels on the layer. A
+    /// kernel's support must keep enough vertices for its weights to be adjusted (at least
+    /// three, not collinear; LK14 4.2.1): edges at most `KERNEL_EDGES` of the smallest radius.
+    /// (Measured without the cap: a 1.3 mm kernel radius under a 2 mm size_max left supports of
+    /// one or two vertices, and the frame did not converge.)
+    pub fn capped_by_kernels(mut self, radii: impl IntoIterator<Item = f64>) -> Self {
+        self.size_max =
+            radii.into_iter().fold(self.size_max, |m, r| m.min(KERNEL_EDGES * r)).max(self.size_min * 1.0001);
+        self
+    }
+
     /// The first violated condition, as (field, message).
     pub fn check(&self) -> Result<(), (&'static str, String)> {
         let positive = |name: &'static str, v: f64| {
@@ -83,6 +97,22 @@ pub struct Remeshed {
     /// The sizing metric of each output vertex.
     pub sizing: Vec<DMat2>,
     pub stats: RemeshStats,
+}
+
+impl Remeshed {
+    /// Whether this remesh, of a mesh of `faces_before` faces, is worth applying: it changed
+    /// the mesh, and (refine mostly, issue 26 item 3) it split or collapsed at least
+    /// `min_change` of the faces' count. A smaller one is not worth the resampling, the new
+    /// symbolic factorization and the solve it disturbs.
+    pub fn worth_applying(&self, min_change: f64, faces_before: usize) -> bool {
+        let s = &self.stats;
+        !self.is_small(min_change, faces_before) && s.splits + s.collapses + s.flips > 0
+    }
+
+    /// Whether it split or collapsed fewer than `min_change` of `faces_before`.
+    pub fn is_small(&self, min_change: f64, faces_before: usize) -> bool {
+        f64::from(self.stats.splits + self.stats.collapses) < min_change * faces_before as f64
+    }
 }
 
 /// Remeshes a checked, consistently oriented surface (REMESH.md "Operations, in order").

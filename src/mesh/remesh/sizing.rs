@@ -215,6 +215,11 @@ pub fn wavelength_term(strain: DMat2, lambda: f64, critical: f64, w: &Wavelength
     from_eigen([k * k, 0.0], v)
 }
 
+/// The material centroid of each face.
+pub fn face_centroids(uv: &[DVec2], faces: &[[u32; 3]]) -> Vec<DVec2> {
+    faces.iter().map(|f| f.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 3.0).collect()
+}
+
 /// Raises each face's wavelength term (`terms`, by `tensor_max`) to the one a lower layer asks:
 /// the lower layer's strain at the face's material centroid, lambda from the nearest of
 /// `centres` (kernel centre, wavelength), the critical strain from `thickness`. `lower` is the
