@@ -162,9 +162,13 @@ const CASES: [Case; 4] = [
 /// Each case's name in the maps' file names.
 const CASE_KEYS: [&str; 4] = ["case10", "case11", "pinch", "localized"];
 
-/// Adaptive runs of a case whose index is here refine by the wavelength term too (8 elements
-/// per wavelength from half the critical strain).
-const WAVELENGTH_CASES: [usize; 1] = [3];
+/// Adaptive runs of a case whose index is here refine by the wavelength term too
+/// (`PER_WAVELENGTH` elements per kernel wavelength across the compression, from half the
+/// critical strain), unless the report is asked for the sweeps without it. Case 11 is not: its
+/// compression covers the whole patch, so the term asks for the finest uniform mesh's spacing
+/// everywhere and did not pay (src/mesh/remesh/README.md, "The wavelength term on the sweeps").
+const WAVELENGTH_CASES: [usize; 2] = [0, 3];
+const PER_WAVELENGTH: u32 = 8;
 
 /// Runs the sweeps of `cases` (indices into case 10, case 11, pinch; empty: all), every shell
 /// bending with `element`; `quick` keeps the coarsest settings of each series (`Case::quick`) and
@@ -174,6 +178,7 @@ pub fn speed_error(
     quick: bool,
     element: BendingElement,
     cases: &[usize],
+    wavelength_term: bool,
 ) -> Result<Vec<Lk14Row>, Box<dyn std::error::Error>> {
     std::fs::create_dir_all(out)?;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
@@ -188,8 +193,10 @@ pub fn speed_error(
             series.push(run(case, &scene_text, &dir, "uniform", format!("{nx} x {ny} cells"), quick)?);
         }
         let ci = CASES.iter().position(|c| std::ptr::eq(c, case)).expect("a case");
+        let term = wavelength_term && WAVELENGTH_CASES.contains(&ci);
+        let n = PER_WAVELENGTH;
         let wavelength =
-            if WAVELENGTH_CASES.contains(&ci) { ", wavelength: Some((per_wavelength: 8, onset: 0.5))" } else { "" };
+            if term { format!(", wavelength: Some((per_wavelength: {n}, onset: 0.5))") } else { String::new() };
         for &(lo, hi, angle, c) in case.adaptive.iter().take(take(case.adaptive.len())) {
             let every = case.every;
             let remesh = format!(
@@ -197,7 +204,8 @@ pub fn speed_error(
                  every: {every}{wavelength}))"
             );
             let scene_text = mesh_line(&text, case.mesh, case.start.0, case.start.1, &remesh);
-            let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm, every {every}");
+            let by_wavelength = if term { format!(", lambda / {n}") } else { String::new() };
+            let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm, every {every}{by_wavelength}");
             series.push(run(case, &scene_text, &dir, "adaptive", setting, quick)?);
         }
         // The reference: the finest uniform run.
@@ -234,7 +242,7 @@ pub fn speed_error(
         }
         rows.extend(series);
     }
-    write(out, &rows, element)?;
+    write(out, &rows, element, wavelength_term)?;
     plot(&out.join("speed_error_lk14"), &rows)?;
     Ok(rows)
 }
@@ -414,11 +422,13 @@ fn remeshed(sim: &mut Simulation, layer: &str, frame: u32) -> u32 {
     u32::from(changed)
 }
 
-fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Result<()> {
+fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, wavelength_term: bool) -> std::io::Result<()> {
     let flag = if element == BendingElement::Hinge { "hinge" } else { "quadratic" };
+    let without = if wavelength_term { "" } else { " --without-wavelength-term" };
     let mut md = format!(
         "# Speed against error, LK14 (VALIDATION.md F, issue 5)\n\n\
-         Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --bending {flag} --out report`. \
+         Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --bending {flag}{without} --out \
+         report`. \
          Every shell bends with the {element:?} element.\n\
          Uniform meshes of the swept layer against adaptive ones (REMESH.md) started from the coarsest uniform \
          mesh; the first frame is solved on that mesh, then it is remeshed every few frames. Every run of a case \
@@ -443,9 +453,10 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement) -> std::io::Resu
          RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Iterations per remesh: \
          after the run, {HELD_FRAMES} frames more with the load held (past the last keyframe) and a remesh every \
          frame; the mean Newton iterations of those frames whose remesh changed the topology (the previous frame \
-         converged at the same load: what a remesh adds, alone). Each run's wrinkle map is in maps/ (case, row of the case from 0, kind). The localized pinch's adaptive runs add the wavelength term (8 elements per kernel \
-         wavelength where the driver's compression passes half the critical strain; its first remesh comes \
-         before the first solve).\n\n\
+         converged at the same load: what a remesh adds, alone). Each run's wrinkle map is in maps/ (case, row of the case from 0, \
+         kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
+         compression at most the kernels' wavelength over N where the compression passes half the critical \
+         strain; their first remesh comes before the first solve); `--without-wavelength-term` leaves it out.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
          map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\

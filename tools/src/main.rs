@@ -102,6 +102,10 @@ enum Command {
         /// LK14 sweeps: only these cases (default: all four).
         #[arg(long, value_enum, value_delimiter = ',')]
         cases: Vec<Lk14Case>,
+        /// LK14 sweeps: adaptive runs refine by curvature and compression only, without the
+        /// wavelength term (as before issue 26), for comparison.
+        #[arg(long)]
+        without_wavelength_term: bool,
     },
     /// Write a procedural asset of the character scenes (scenes/character): `hand`, a hand-like
     /// body (arm, palm, two fingers) as an OBJ with UVs, lengths in mm.
@@ -249,13 +253,13 @@ fn main() -> ExitCode {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
-        Command::Report { out, quick, only, bending, cases } => {
+        Command::Report { out, quick, only, bending, cases, without_wavelength_term } => {
             let element = match bending {
                 BendingArg::Hinge => skinsim::physics::BendingElement::Hinge,
                 BendingArg::Quadratic => skinsim::physics::BendingElement::Quadratic,
             };
             let cases: Vec<usize> = cases.iter().map(|c| *c as usize).collect();
-            report(&out, quick, only, element, &cases)
+            report(&out, quick, only, element, &cases, !without_wavelength_term)
         }
         Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
         Command::Bake { scene, frames, weights, angles, size, out, layer, blend, layout } => {
@@ -697,6 +701,7 @@ fn report(
     only: Sweeps,
     element: skinsim::physics::BendingElement,
     cases: &[usize],
+    wavelength_term: bool,
 ) -> ExitCode {
     let result = (|| -> Result<(), Box<dyn std::error::Error>> {
         if only != Sweeps::Lk14 {
@@ -704,7 +709,7 @@ fn report(
             println!("{} runs; wrote {}", rows.len(), out.join("speed_error.md").display());
         }
         if only != Sweeps::H15 {
-            let rows = skinsim_tools::lk14_report::speed_error(out, quick, element, cases)?;
+            let rows = skinsim_tools::lk14_report::speed_error(out, quick, element, cases, wavelength_term)?;
             println!("{} runs; wrote {}", rows.len(), out.join("speed_error_lk14.md").display());
         }
         Ok(())

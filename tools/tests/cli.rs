@@ -405,6 +405,16 @@ fn report_sweeps_one_lk14_case_with_the_quadratic_element() {
     let rows: Vec<&str> = lk14.lines().filter(|l| l.starts_with("| case") || l.starts_with("| fig")).collect();
     assert_eq!(rows.len(), 4, "{lk14}");
     assert!(rows.iter().all(|r| r.starts_with("| case 10")), "{lk14}");
+    // (issue 26 item 1) Its adaptive runs refine by the wavelength term, unless asked not to.
+    let adaptive = |table: &str| -> Vec<String> {
+        table.lines().filter(|l| l.starts_with("| case 10") && l.contains("adaptive")).map(String::from).collect()
+    };
+    assert!(adaptive(&lk14).len() == 2 && adaptive(&lk14).iter().all(|r| r.contains("lambda / 8")), "{lk14}");
+    let out = skinsim().args(args).arg(&dir).arg("--without-wavelength-term").output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let without = std::fs::read_to_string(dir.join("speed_error_lk14.md")).unwrap();
+    assert!(without.contains("--bending quadratic --without-wavelength-term"), "{without}");
+    assert!(adaptive(&without).len() == 2 && adaptive(&without).iter().all(|r| !r.contains("lambda /")), "{without}");
     let bad = skinsim().args(["report", "--only", "lk14", "--cases", "12"]).output().unwrap();
     assert_eq!(bad.status.code(), Some(2));
 }
