@@ -164,11 +164,40 @@ const CASE_KEYS: [&str; 4] = ["case10", "case11", "pinch", "localized"];
 
 /// Adaptive runs of a case whose index is here refine by the wavelength term too
 /// (`PER_WAVELENGTH` elements per kernel wavelength across the compression, from half the
-/// critical strain), unless the report is asked for the sweeps without it. Case 11 is not: its
-/// compression covers the whole patch, so the term asks for the finest uniform mesh's spacing
-/// everywhere and did not pay (src/mesh/remesh/README.md, "The wavelength term on the sweeps").
+/// critical strain) by default. Case 11 is not: its compression covers the whole patch, so the
+/// term asks for the finest uniform mesh's spacing everywhere and did not pay
+/// (src/mesh/remesh/README.md, "The wavelength term on the sweeps").
 const WAVELENGTH_CASES: [usize; 2] = [0, 3];
 const PER_WAVELENGTH: u32 = 8;
+
+/// Which cases' adaptive runs refine by the wavelength term.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WavelengthTerm {
+    /// Those where it was measured to pay (`WAVELENGTH_CASES`).
+    #[default]
+    Default,
+    All,
+    Off,
+}
+
+impl WavelengthTerm {
+    fn applies(self, case: usize) -> bool {
+        match self {
+            WavelengthTerm::Default => WAVELENGTH_CASES.contains(&case),
+            WavelengthTerm::All => true,
+            WavelengthTerm::Off => false,
+        }
+    }
+
+    /// The report's command-line option that selects it.
+    fn flag(self) -> &'static str {
+        match self {
+            WavelengthTerm::Default => "",
+            WavelengthTerm::All => " --wavelength-term all",
+            WavelengthTerm::Off => " --wavelength-term off",
+        }
+    }
+}
 
 /// Runs the sweeps of `cases` (indices into case 10, case 11, pinch; empty: all), every shell
 /// bending with `element`; `quick` keeps the coarsest settings of each series (`Case::quick`) and
@@ -178,7 +207,7 @@ pub fn speed_error(
     quick: bool,
     element: BendingElement,
     cases: &[usize],
-    wavelength_term: bool,
+    wavelength_term: WavelengthTerm,
 ) -> Result<Vec<Lk14Row>, Box<dyn std::error::Error>> {
     std::fs::create_dir_all(out)?;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
@@ -193,7 +222,7 @@ pub fn speed_error(
             series.push(run(case, &scene_text, &dir, "uniform", format!("{nx} x {ny} cells"), quick)?);
         }
         let ci = CASES.iter().position(|c| std::ptr::eq(c, case)).expect("a case");
-        let term = wavelength_term && WAVELENGTH_CASES.contains(&ci);
+        let term = wavelength_term.applies(ci);
         let n = PER_WAVELENGTH;
         let wavelength =
             if term { format!(", wavelength: Some((per_wavelength: {n}, onset: 0.5))") } else { String::new() };
@@ -422,9 +451,9 @@ fn remeshed(sim: &mut Simulation, layer: &str, frame: u32) -> u32 {
     u32::from(changed)
 }
 
-fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, wavelength_term: bool) -> std::io::Result<()> {
+fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: WavelengthTerm) -> std::io::Result<()> {
     let flag = if element == BendingElement::Hinge { "hinge" } else { "quadratic" };
-    let without = if wavelength_term { "" } else { " --without-wavelength-term" };
+    let without = term.flag();
     let mut md = format!(
         "# Speed against error, LK14 (VALIDATION.md F, issue 5)\n\n\
          Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --bending {flag}{without} --out \
@@ -456,7 +485,8 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, wavelength_term:
          converged at the same load: what a remesh adds, alone). Each run's wrinkle map is in maps/ (case, row of the case from 0, \
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
-         strain; their first remesh comes before the first solve); `--without-wavelength-term` leaves it out.\n\n\
+         strain; their first remesh comes before the first solve): by default those of case 10 and the \
+         localized pinch, `--wavelength-term all` or `off` for every case or none.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
          map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\

@@ -102,10 +102,11 @@ enum Command {
         /// LK14 sweeps: only these cases (default: all four).
         #[arg(long, value_enum, value_delimiter = ',')]
         cases: Vec<Lk14Case>,
-        /// LK14 sweeps: adaptive runs refine by curvature and compression only, without the
-        /// wavelength term (as before issue 26), for comparison.
-        #[arg(long)]
-        without_wavelength_term: bool,
+        /// LK14 sweeps: which cases' adaptive runs refine by the wavelength term (issue 26):
+        /// default, case 10 and the localized pinch (where it was measured to pay); all; off
+        /// (curvature and compression only, as before).
+        #[arg(long, value_enum, default_value = "default")]
+        wavelength_term: WavelengthTermArg,
     },
     /// Write a procedural asset of the character scenes (scenes/character): `hand`, a hand-like
     /// body (arm, palm, two fingers) as an OBJ with UVs, lengths in mm.
@@ -160,6 +161,13 @@ enum Lk14Case {
     Pinch,
     /// The localized pinch (issue 26): wrinkles on about a tenth of a large patch.
     Localized,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum WavelengthTermArg {
+    Default,
+    All,
+    Off,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -253,13 +261,18 @@ fn main() -> ExitCode {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
-        Command::Report { out, quick, only, bending, cases, without_wavelength_term } => {
+        Command::Report { out, quick, only, bending, cases, wavelength_term } => {
             let element = match bending {
                 BendingArg::Hinge => skinsim::physics::BendingElement::Hinge,
                 BendingArg::Quadratic => skinsim::physics::BendingElement::Quadratic,
             };
             let cases: Vec<usize> = cases.iter().map(|c| *c as usize).collect();
-            report(&out, quick, only, element, &cases, !without_wavelength_term)
+            let term = match wavelength_term {
+                WavelengthTermArg::Default => skinsim_tools::lk14_report::WavelengthTerm::Default,
+                WavelengthTermArg::All => skinsim_tools::lk14_report::WavelengthTerm::All,
+                WavelengthTermArg::Off => skinsim_tools::lk14_report::WavelengthTerm::Off,
+            };
+            report(&out, quick, only, element, &cases, term)
         }
         Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
         Command::Bake { scene, frames, weights, angles, size, out, layer, blend, layout } => {
@@ -701,7 +714,7 @@ fn report(
     only: Sweeps,
     element: skinsim::physics::BendingElement,
     cases: &[usize],
-    wavelength_term: bool,
+    wavelength_term: skinsim_tools::lk14_report::WavelengthTerm,
 ) -> ExitCode {
     let result = (|| -> Result<(), Box<dyn std::error::Error>> {
         if only != Sweeps::Lk14 {

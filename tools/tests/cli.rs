@@ -410,10 +410,10 @@ fn report_sweeps_one_lk14_case_with_the_quadratic_element() {
         table.lines().filter(|l| l.starts_with("| case 10") && l.contains("adaptive")).map(String::from).collect()
     };
     assert!(adaptive(&lk14).len() == 2 && adaptive(&lk14).iter().all(|r| r.contains("lambda / 8")), "{lk14}");
-    let out = skinsim().args(args).arg(&dir).arg("--without-wavelength-term").output().unwrap();
+    let out = skinsim().args(args).arg(&dir).args(["--wavelength-term", "off"]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let without = std::fs::read_to_string(dir.join("speed_error_lk14.md")).unwrap();
-    assert!(without.contains("--bending quadratic --without-wavelength-term"), "{without}");
+    assert!(without.contains("--bending quadratic --wavelength-term off"), "{without}");
     assert!(adaptive(&without).len() == 2 && adaptive(&without).iter().all(|r| !r.contains("lambda /")), "{without}");
     let bad = skinsim().args(["report", "--only", "lk14", "--cases", "12"]).output().unwrap();
     assert_eq!(bad.status.code(), Some(2));
