@@ -15,6 +15,7 @@ pub mod motion;
 pub mod properties;
 pub mod remesh;
 mod remesh_write;
+mod render_mesh;
 pub mod schedule;
 pub mod settle;
 pub mod simulation;

@@ -5,7 +5,7 @@ use glam::{DVec2, DVec3};
 use skinsim::mesh;
 use skinsim::mesh::shading::{self, ColourBy};
 
-use crate::log::RenderMesh;
+use crate::render_mesh::RenderMesh;
 
 /// Logs a layer's mesh coloured as `by` asks; returns its vertex colours and its line of the
 /// legend (its scale or colour; none for strain, whose scale is fixed).

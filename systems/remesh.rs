@@ -30,14 +30,14 @@ pub fn remesh_layers(world: &mut World) {
         settings.params = settings.params.capped_by_kernels(radii);
         let epoch = |w: &World| w.get::<TopologyEpoch>(layer).map(|e| e.0);
         let before = epoch(world);
-        remesh_layer(world, layer, &settings, frame);
+        remesh_layer(world, layer, &settings, &kernels, frame);
         if epoch(world) != before {
             crate::attach::reattach(world, layer);
         }
     }
 }
 
-fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, frame: u32) {
+fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, kernels: &[Kernel], frame: u32) {
     let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
     let old_faces: Vec<Entity> = world.get::<LayerFaces>(layer).map_or(Vec::new(), |f| f.entities().to_vec());
     let index: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
@@ -59,14 +59,14 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
     let faces: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| index[&v])).collect();
     let imperfection = world.get::<LayerImperfection>(layer).map(|i| i.0);
     let extra = match settings.wavelength {
-        Some(w) => wavelength_terms(world, layer, &input, &faces, &w),
+        Some(w) => wavelength_terms(world, layer, kernels, (&input, &faces), &w),
         None => Vec::new(),
     };
     let out = remesh_under(imperfection.as_ref(), input, &faces, &extra, &settings.params);
     let small = out.is_small(settings.min_change, faces.len());
     let report = RemeshReport::new(frame, settings.params.size_max, &out, small, (verts.len(), faces.len()));
     world.entity_mut(layer).insert(report);
-    if out.worth_applying(settings.min_change, faces.len()) {
+    if !small && out.changed() {
         crate::remesh_write::apply(world, layer, settings, &verts, (&old_faces, &tris), &out);
     }
 }
@@ -75,13 +75,12 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, fra
 /// lambda(x) the wavelength of the nearest kernel holding the layer (twice its radius, LK14
 /// 4.1), the strain that of every layer below it (`coupling::kernels::layers_below`).
 fn wavelength_terms(
-    world: &mut World,
+    world: &World,
     layer: Entity,
-    input: &[RemeshVertex],
-    faces: &[[u32; 3]],
+    kernels: &[Kernel],
+    (input, faces): (&[RemeshVertex], &[[u32; 3]]),
     w: &WavelengthSizing,
 ) -> Vec<DMat2> {
-    let kernels: Vec<Kernel> = world.query::<&Kernel>().iter(world).copied().collect();
     let centres: Vec<(DVec2, f64)> =
         kernels.iter().filter(|k| k.upper == layer).map(|k| (k.shape.centre, 2.0 * k.shape.radius)).collect();
     let Some(thickness) = world.get::<Thickness>(layer).map(|t| t.0) else { return Vec::new() };

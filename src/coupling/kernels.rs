@@ -316,6 +316,7 @@ pub fn layers_below<L: Copy + PartialEq>(couplings: &[(L, L)], layer: L) -> Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::{grid, GridPattern};
 
     #[test]
     fn layers_below_walk_the_chain_nearest_first_and_stop_at_a_cycle() {
@@ -327,7 +328,6 @@ mod tests {
         let cycle = [(0, 1), (1, 0)];
         assert!(layers_below(&cycle, 0).len() <= cycle.len());
     }
-    use crate::mesh::{grid, GridPattern};
 
     fn sheet(cells: u32) -> crate::mesh::SurfaceMesh {
         grid(DVec2::new(1.0, 1.0), (cells, cells), GridPattern::Equilateral, 0.0)

@@ -476,3 +476,37 @@ pub struct KernelWeights {
     /// What the adjustment could do on each layer.
     pub adjusted: [Option<crate::coupling::kernels::Adjusted>; 2],
 }
+
+#[cfg(test)]
+mod tests {
+    use super::RemeshSettings;
+    use crate::mesh::remesh::sizing::WavelengthSizing;
+    use crate::mesh::remesh::RemeshParams;
+
+    #[test]
+    fn a_layer_is_first_remeshed_after_the_first_solve_or_before_it_with_the_wavelength_term() {
+        let params = RemeshParams {
+            size_min: 1e-4,
+            size_max: 1e-3,
+            aspect_min: 0.2,
+            refine_angle: 0.3,
+            refine_compression: 0.01,
+            refine_velocity: None,
+            curved_splits: true,
+        };
+        let plain = RemeshSettings {
+            params,
+            every: 3,
+            settle: false,
+            settle_rings: 0,
+            local_solve: false,
+            min_change: 0.0,
+            wavelength: None,
+        };
+        let due = |s: &RemeshSettings| (1..=8).filter(|&f| s.due(f)).collect::<Vec<_>>();
+        assert_eq!(due(&plain), [2, 5, 8]);
+        let term = RemeshSettings { wavelength: Some(WavelengthSizing { per_wavelength: 8.0, onset: 0.5 }), ..plain };
+        assert_eq!(due(&term), [1, 4, 7]);
+        assert_eq!(due(&RemeshSettings { every: 1, ..plain }), [2, 3, 4, 5, 6, 7, 8]);
+    }
+}

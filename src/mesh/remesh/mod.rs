@@ -100,16 +100,15 @@ pub struct Remeshed {
 }
 
 impl Remeshed {
-    /// Whether this remesh, of a mesh of `faces_before` faces, is worth applying: it changed
-    /// the mesh, and (refine mostly, issue 26 item 3) it split or collapsed at least
-    /// `min_change` of the faces' count. A smaller one is not worth the resampling, the new
-    /// symbolic factorization and the solve it disturbs.
-    pub fn worth_applying(&self, min_change: f64, faces_before: usize) -> bool {
+    /// Whether it changed the mesh at all.
+    pub fn changed(&self) -> bool {
         let s = &self.stats;
-        !self.is_small(min_change, faces_before) && s.splits + s.collapses + s.flips > 0
+        s.splits + s.collapses + s.flips > 0
     }
 
-    /// Whether it split or collapsed fewer than `min_change` of `faces_before`.
+    /// Whether it split or collapsed fewer than `min_change` of `faces_before` (refine mostly,
+    /// issue 26 item 3): such a remesh is not worth the resampling, the new symbolic
+    /// factorization and the solve it disturbs.
     pub fn is_small(&self, min_change: f64, faces_before: usize) -> bool {
         f64::from(self.stats.splits + self.stats.collapses) < min_change * faces_before as f64
     }

@@ -253,3 +253,24 @@ fn the_wavelength_term_follows_the_compression_direction() {
     let k = 2.0 * std::f64::consts::PI / 1e-3;
     assert!((sizing::critical_strain(0.05e-3, 1e-3) - (k * 0.05e-3).powi(2) / 12.0).abs() < 1e-18);
 }
+
+#[test]
+fn the_kernels_cap_the_largest_edge_but_never_below_the_smallest() {
+    let p = params(0.1e-3, 2e-3);
+    assert_eq!(p.capped_by_kernels([]).size_max, 2e-3, "no kernel: the scene's");
+    assert_eq!(p.capped_by_kernels([3e-3, 1e-3, 2e-3]).size_max, KERNEL_EDGES * 1e-3, "the smallest radius wins");
+    assert!(p.capped_by_kernels([0.1e-3]).size_max > p.size_min, "a tiny kernel leaves size_max above size_min");
+}
+
+#[test]
+fn a_remesh_is_small_below_min_change_and_changed_by_any_operation() {
+    let mut r = Remeshed::default();
+    assert!(!r.changed());
+    r.stats.flips = 1;
+    assert!(r.changed(), "a flip changes the topology");
+    assert!(r.is_small(0.01, 100), "but splits nor collapses none");
+    assert!(!r.is_small(0.0, 100), "min_change 0 keeps every remesh");
+    r.stats.splits = 1;
+    assert!(!r.is_small(0.01, 100), "one split of 100 faces is 1 %");
+    assert!(r.is_small(0.02, 100));
+}
