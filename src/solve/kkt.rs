@@ -1,7 +1,8 @@
 //! The constrained Newton system of LK14 eq. 5.1, `[[H + mu I, J^T], [J, 0]] [dx; lambda] =
 //! [-g; -c]`, solved two ways with faer (PHYSICS.md 2; ENGINEERING-NOTES: faer's KKT behaviour):
-//! - `Ldlt`: one sparse LDL^T of the whole KKT matrix (the Hessian's nested dissection, then
-//!   the multipliers), the multiplier diagonal
+//! - `Ldlt`: one sparse LDL^T of the whole KKT matrix (ordered by the Hessian's nested
+//!   dissection then the multipliers, or by the whole matrix's, whichever fills less), the
+//!   multiplier diagonal
 //!   set to a tiny -delta so that no pivot is exactly zero, then iterative refinement against
 //!   the matrix without delta;
 //! - `Schur`: the sparse Cholesky of H + mu I, then the dense Schur complement
@@ -28,7 +29,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
 
 use super::constraints::Constraints;
-use super::linear::{negative_pivots, symmetric_product_into, CholeskySolver, NotPositiveDefinite};
+use super::linear::{factor_flops, negative_pivots, symmetric_product_into, CholeskySolver, NotPositiveDefinite};
 use super::pattern::{Pattern, NONE};
 use super::settings::KktMethod;
 
@@ -125,19 +126,7 @@ impl KktSystem {
                 // 216-305 against 425-448 ms per factorization).
                 let par = Par::Seq;
                 let sym = SymbolicSparseColMatRef::new_checked(n + m, n + m, &col_ptr, None, &row_idx);
-                let forward: Vec<u32> = h.order.iter().copied().chain((n..n + m).map(|r| r as u32)).collect();
-                let mut inverse = vec![0u32; n + m];
-                for (k, &d) in forward.iter().enumerate() {
-                    inverse[d as usize] = k as u32;
-                }
-                // The Hessian's nested dissection, then the multipliers (measured on the two-layer
-                // fig. 6-3 quick scene, 21k DOFs and 342 rows: 177-184 ms per factorization
-                // against 199-213 ms with AMD over the whole KKT matrix).
-                let perm = faer::perm::PermRef::new_checked(&forward, &inverse, n + m);
-                let ordering = SymmetricOrdering::Custom(perm);
-                let symbolic =
-                    factorize_symbolic_cholesky(sym, Side::Lower, ordering, CholeskySymbolicParams::default())
-                        .expect("symbolic LDL^T of a valid KKT pattern");
+                let symbolic = symbolic_ldlt(sym, &h.order, n, m, &col_ptr, &row_idx);
                 let req = StackReq::any_of(&[
                     symbolic.factorize_numeric_ldlt_scratch::<f64>(par, Default::default()),
                     symbolic.solve_in_place_scratch::<f64>(1, par),
@@ -475,6 +464,74 @@ fn fill_rows(jt: &mut [Vec<(u32, f64)>], col_ptr: &[u32], row_idx: &[u32], value
     }
 }
 
+/// The symbolic LDL^T under the cheaper (fewer factor flops) of two elimination orders:
+/// - the Hessian's nested dissection `h_order`, then the multipliers (the fig. 6-3 two-layer
+///   quick scene, 21k DOFs and 342 rows: 177-184 ms per factorization against 199-213 ms with
+///   AMD over the whole KKT matrix; 1.24e9 flops against 1.93e9 with the order below);
+/// - METIS's nested dissection of the whole KKT graph, each multiplier then moved after the last
+///   DOF of its row: with the rows last, J H^-1 J^T is a dense m x m block, which dominates
+///   once the kernels are many (the localized pinch at 128 x 111, 61k DOFs and 3405 rows:
+///   2.24e10 against 4.00e10 flops, a frame's factorizations 46-52 s against 79-82 s).
+fn symbolic_ldlt(
+    sym: SymbolicSparseColMatRef<'_, u32>,
+    h_order: &[u32],
+    n: usize,
+    m: usize,
+    col_ptr: &[u32],
+    row_idx: &[u32],
+) -> SymbolicCholesky<u32> {
+    let with_order = |forward: &[u32]| {
+        let mut inverse = vec![0u32; n + m];
+        for (k, &d) in forward.iter().enumerate() {
+            inverse[d as usize] = k as u32;
+        }
+        let perm = faer::perm::PermRef::new_checked(forward, &inverse, n + m);
+        factorize_symbolic_cholesky(
+            sym,
+            Side::Lower,
+            SymmetricOrdering::Custom(perm),
+            CholeskySymbolicParams::default(),
+        )
+        .expect("symbolic LDL^T of a valid KKT pattern")
+    };
+    let rows_last: Vec<u32> = h_order.iter().copied().chain((n..n + m).map(|r| r as u32)).collect();
+    let rows_last = with_order(&rows_last);
+    let whole = (m > 0)
+        .then(|| super::ordering::metis_nested_dissection(col_ptr, row_idx))
+        .flatten()
+        .map(|order| with_order(&rows_after_support(&order, n, col_ptr, row_idx)));
+    let flops_last = factor_flops(&rows_last);
+    match whole {
+        Some(whole) if factor_flops(&whole) < flops_last => {
+            tracing::debug!(n, m, flops_last, flops = factor_flops(&whole), "KKT ordered as a whole");
+            whole
+        }
+        _ => rows_last,
+    }
+}
+
+/// `order` (an elimination order of the KKT pattern, lower CSC over n DOFs then the
+/// multipliers) with each multiplier moved after the last DOF of its row: its pivot is then
+/// -J_r S^-1 J_r^T over the DOFs eliminated before it, not the bare (zero) multiplier diagonal.
+/// The DOFs keep their relative order, and so do multipliers placed after the same DOF.
+fn rows_after_support(order: &[u32], n: usize, col_ptr: &[u32], row_idx: &[u32]) -> Vec<u32> {
+    let mut pos = vec![0usize; order.len()];
+    for (k, &d) in order.iter().enumerate() {
+        pos[d as usize] = k;
+    }
+    let mut key = pos.clone();
+    for c in 0..n {
+        for &r in &row_idx[col_ptr[c] as usize..col_ptr[c + 1] as usize] {
+            if r as usize >= n {
+                key[r as usize] = key[r as usize].max(pos[c]);
+            }
+        }
+    }
+    let mut nodes: Vec<u32> = (0..order.len() as u32).collect();
+    nodes.sort_by_key(|&d| (key[d as usize], usize::from(d as usize >= n), pos[d as usize]));
+    nodes
+}
+
 #[cfg(test)]
 mod tests {
     use glam::DVec3;
@@ -660,5 +717,97 @@ mod inertia_tests {
             .unwrap();
         assert_eq!(negative_pivots(&symbolic, &l_values), expected);
         assert!(expected > 10);
+    }
+}
+
+#[cfg(test)]
+mod ordering_tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::solve::constraints::KernelRows;
+    use crate::solve::{Elements, SpringElem};
+
+    #[test]
+    fn each_multiplier_moves_after_the_last_dof_of_its_row() {
+        // 4 DOFs, 2 multipliers: row 4 on DOFs 0 and 2, row 5 on DOF 3 (lower CSC).
+        let col_ptr = [0, 2, 3, 5, 7, 8, 9];
+        let row_idx = [0, 4, 1, 2, 4, 3, 5, 4, 5];
+        let order = rows_after_support(&[4, 3, 5, 0, 1, 2], 4, &col_ptr, &row_idx);
+        assert_eq!(order, [3, 5, 0, 1, 2, 4]);
+    }
+
+    /// A k x k grid of springs, every 2 x 2 block of vertices held by a kernel: many rows
+    /// against few DOFs, where ordering the multipliers last makes a dense block. The whole-graph
+    /// order is chosen, fills less, and the step equals the Schur complement's.
+    #[test]
+    fn many_kernels_are_ordered_with_the_dofs_and_solve_the_same_step() {
+        let k = 24u32;
+        let x: Vec<DVec3> = (0..k * k).map(|i| DVec3::new(f64::from(i % k), f64::from(i / k), 0.0)).collect();
+        let mut springs = Vec::new();
+        for i in 0..k * k {
+            if i % k + 1 < k {
+                springs.push(SpringElem { v: [i, i + 1], k: 1.0 });
+            }
+            if i / k + 1 < k {
+                springs.push(SpringElem { v: [i, i + k], k: 1.0 });
+            }
+        }
+        let p = Pattern::build(&x, &vec![[false; 3]; x.len()], &[], &Elements { springs, ..Default::default() });
+        let mut h = vec![0.0; p.nnz()];
+        for col in 0..p.n {
+            for e in p.col_ptr[col] as usize..p.col_ptr[col + 1] as usize {
+                let row = p.row_idx[e] as usize;
+                h[e] = if row == col {
+                    5.0
+                } else if row % 3 == col % 3 {
+                    -0.5
+                } else {
+                    0.0
+                };
+            }
+        }
+        let kernels = (0..k / 2)
+            .flat_map(|a| (0..k / 2).map(move |b| 2 * a * k + 2 * b))
+            .map(|v| KernelRows {
+                upper: vec![(v, 0.4), (v + 1, 0.3), (v + k, 0.2), (v + k + 1, 0.1)],
+                lower: vec![],
+                lower_moves: false,
+            })
+            .collect();
+        let c = Constraints::new(kernels, &x);
+        let mut jac = Vec::new();
+        c.jacobian(&x, &mut jac);
+        let mut ldlt = KktSystem::build(&p, &c, KktMethod::Ldlt);
+        let Solver::Ldlt { symbolic, .. } = &ldlt.method else { unreachable!() };
+        let last: Vec<u32> = p.order.iter().copied().chain((ldlt.n..ldlt.n + ldlt.m).map(|r| r as u32)).collect();
+        let inverse = {
+            let mut inv = vec![0u32; last.len()];
+            last.iter().enumerate().for_each(|(k, &d)| inv[d as usize] = k as u32);
+            inv
+        };
+        let sym =
+            SymbolicSparseColMatRef::new_checked(ldlt.n + ldlt.m, ldlt.n + ldlt.m, &ldlt.col_ptr, None, &ldlt.row_idx);
+        let perm = faer::perm::PermRef::new_checked(&last, &inverse, last.len());
+        let rows_last =
+            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default()).unwrap();
+        assert!(
+            factor_flops(symbolic) < 0.8 * factor_flops(&rows_last),
+            "{} against {}",
+            factor_flops(symbolic),
+            factor_flops(&rows_last)
+        );
+        let g: Vec<f64> = (0..p.n).map(|i| (i as f64).sin()).collect();
+        let cv: Vec<f64> = (0..ldlt.m).map(|r| 0.01 * (r as f64).cos()).collect();
+        let (mut dx, mut lambda) = (vec![0.0; p.n], vec![0.0; ldlt.m]);
+        ldlt.step(&p, &h, &jac, &g, &cv, &mut dx, &mut lambda).unwrap();
+        assert_eq!(ldlt.shift, 0.0);
+        let mut schur = KktSystem::build(&p, &c, KktMethod::Schur);
+        let (mut dx_s, mut lambda_s) = (vec![0.0; p.n], vec![0.0; ldlt.m]);
+        schur.step(&p, &h, &jac, &g, &cv, &mut dx_s, &mut lambda_s).unwrap();
+        let scale = dx_s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (a, b) in dx.iter().zip(&dx_s) {
+            assert!((a - b).abs() < 1e-9 * scale, "{a} against {b}");
+        }
     }
 }
