@@ -9,6 +9,12 @@ use glam::DVec3;
 /// Parts of at most this many vertices are not split further.
 const LEAF: usize = 48;
 
+/// One METIS call at a time: METIS seeds its random generator at each call, but the generator's
+/// state is a global of GKlib's (random.c), so two patches ordered at once on two threads
+/// changed each other's orders, and so their round-off (`tests/bodies.rs`: a patch alone
+/// against beside another).
+static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// METIS nested dissection (METIS_NodeND with its default, fixed seed: deterministic) of the
 /// graph of a symmetric matrix whose lower triangle is stored as CSC; an elimination order.
 pub fn metis_nested_dissection(col_ptr: &[u32], row_idx: &[u32]) -> Option<Vec<u32>> {
@@ -33,6 +39,7 @@ pub fn metis_nested_dissection(col_ptr: &[u32], row_idx: &[u32]) -> Option<Vec<u
     }
     let mut nvtxs = i32::try_from(n).ok()?;
     let (mut perm, mut iperm) = (vec![0i32; n], vec![0i32; n]);
+    let _one_at_a_time = METIS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
     // SAFETY: METIS reads the CSR graph (xadj of length n + 1, adjncy entries below n, no
     // self loops) and writes perm and iperm, each of length n; null weights and options select
     // its defaults.
