@@ -22,14 +22,14 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::solvers::{Llt, Solve};
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, SymbolicCholesky, SymmetricOrdering,
-};
+use faer::sparse::linalg::cholesky::{LdltRef, SymbolicCholesky};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
 
 use super::constraints::Constraints;
-use super::linear::{factor_flops, negative_pivots, symmetric_product_into, CholeskySolver, NotPositiveDefinite};
+use super::linear::{
+    factor_flops, negative_pivots, symbolic_in_order, symmetric_product_into, CholeskySolver, NotPositiveDefinite,
+};
 use super::pattern::{Pattern, NONE};
 use super::settings::KktMethod;
 
@@ -480,20 +480,7 @@ fn symbolic_ldlt(
     col_ptr: &[u32],
     row_idx: &[u32],
 ) -> SymbolicCholesky<u32> {
-    let with_order = |forward: &[u32]| {
-        let mut inverse = vec![0u32; n + m];
-        for (k, &d) in forward.iter().enumerate() {
-            inverse[d as usize] = k as u32;
-        }
-        let perm = faer::perm::PermRef::new_checked(forward, &inverse, n + m);
-        factorize_symbolic_cholesky(
-            sym,
-            Side::Lower,
-            SymmetricOrdering::Custom(perm),
-            CholeskySymbolicParams::default(),
-        )
-        .expect("symbolic LDL^T of a valid KKT pattern")
-    };
+    let with_order = |order: &[u32]| symbolic_in_order(sym, order);
     let rows_last: Vec<u32> = h_order.iter().copied().chain((n..n + m).map(|r| r as u32)).collect();
     let rows_last = with_order(&rows_last);
     let whole = (m > 0)
@@ -501,9 +488,9 @@ fn symbolic_ldlt(
         .flatten()
         .map(|order| with_order(&rows_after_support(&order, n, col_ptr, row_idx)));
     let flops_last = factor_flops(&rows_last);
-    match whole {
-        Some(whole) if factor_flops(&whole) < flops_last => {
-            tracing::debug!(n, m, flops_last, flops = factor_flops(&whole), "KKT ordered as a whole");
+    match whole.map(|w| (factor_flops(&w), w)) {
+        Some((flops, whole)) if flops < flops_last => {
+            tracing::debug!(n, m, flops_last, flops, "KKT ordered as a whole");
             whole
         }
         _ => rows_last,
@@ -665,6 +652,7 @@ mod verdict_tests {
 mod inertia_tests {
     use super::*;
     use faer::sparse::linalg::cholesky::SymbolicCholeskyRaw;
+    use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering};
 
     /// The inertia read from faer's factor matches the known spectrum of a shifted 2D Laplacian
     /// (large enough for the supernodal factorization): eigenvalues 4 - 2 cos(i pi / (k + 1)) -
@@ -783,16 +771,9 @@ mod ordering_tests {
         let mut ldlt = KktSystem::build(&p, &c, KktMethod::Ldlt);
         let Solver::Ldlt { symbolic, .. } = &ldlt.method else { unreachable!() };
         let last: Vec<u32> = p.order.iter().copied().chain((ldlt.n..ldlt.n + ldlt.m).map(|r| r as u32)).collect();
-        let inverse = {
-            let mut inv = vec![0u32; last.len()];
-            last.iter().enumerate().for_each(|(k, &d)| inv[d as usize] = k as u32);
-            inv
-        };
         let sym =
             SymbolicSparseColMatRef::new_checked(ldlt.n + ldlt.m, ldlt.n + ldlt.m, &ldlt.col_ptr, None, &ldlt.row_idx);
-        let perm = faer::perm::PermRef::new_checked(&last, &inverse, last.len());
-        let rows_last =
-            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default()).unwrap();
+        let rows_last = symbolic_in_order(sym, &last);
         assert!(
             factor_flops(symbolic) < 0.8 * factor_flops(&rows_last),
             "{} against {}",

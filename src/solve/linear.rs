@@ -57,15 +57,7 @@ impl CholeskySolver {
     pub fn analyze(p: &Pattern) -> Self {
         let par = if p.n >= PARALLEL_MIN_DOFS { Par::rayon(rayon::current_num_threads()) } else { Par::Seq };
         let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
-        let with_order = |order: &[u32]| {
-            let mut inverse = vec![0u32; p.n];
-            for (k, &d) in order.iter().enumerate() {
-                inverse[d as usize] = k as u32;
-            }
-            let perm = faer::perm::PermRef::new_checked(order, &inverse, p.n);
-            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
-                .expect("symbolic Cholesky of a valid pattern")
-        };
+        let with_order = |order: &[u32]| symbolic_in_order(sym, order);
         let symbolic = if p.n >= NESTED_DISSECTION_MIN_DOFS {
             let ours = with_order(&p.order);
             match super::ordering::metis_nested_dissection(&p.col_ptr, &p.row_idx).map(|o| with_order(&o)) {
@@ -283,6 +275,18 @@ pub(super) fn pivot_positions(symbolic: &SymbolicCholesky<u32>) -> Vec<usize> {
 
 /// The flops of a numeric factorization with this symbolic factor: the sum over L's columns of
 /// their entry count squared.
+/// The symbolic factorization of a symmetric pattern (lower CSC) under the elimination order
+/// `order` (order[k] is the k-th row eliminated).
+pub(super) fn symbolic_in_order(sym: SymbolicSparseColMatRef<'_, u32>, order: &[u32]) -> SymbolicCholesky<u32> {
+    let mut inverse = vec![0u32; order.len()];
+    for (k, &d) in order.iter().enumerate() {
+        inverse[d as usize] = k as u32;
+    }
+    let perm = faer::perm::PermRef::new_checked(order, &inverse, order.len());
+    factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Custom(perm), Default::default())
+        .expect("symbolic factorization of a valid pattern")
+}
+
 pub fn factor_flops(symbolic: &SymbolicCholesky<u32>) -> f64 {
     match symbolic.raw() {
         SymbolicCholeskyRaw::Simplicial(s) => {
