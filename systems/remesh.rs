@@ -11,7 +11,7 @@ use bevy_ecs::prelude::*;
 use glam::{DMat2, DVec2, DVec3};
 use skinsim::coupling::kernels::layers_below;
 use skinsim::mesh::imperfection::remesh_under;
-use skinsim::mesh::remesh::sizing::{add_wavelength_terms, face_centroids, WavelengthSizing};
+use skinsim::mesh::remesh::sizing::{add_wavelength_terms, face_centroids, grow_terms, WavelengthSizing};
 use skinsim::mesh::remesh::RemeshVertex;
 use skinsim::model::*;
 
@@ -87,12 +87,45 @@ fn wavelength_terms(
     let uv: Vec<DVec2> = input.iter().map(|v| v.uv).collect();
     let centroids = face_centroids(&uv, faces);
     let couplings: Vec<(Entity, Entity)> = kernels.iter().map(|k| (k.upper, k.lower)).collect();
+    let frame = world.resource::<SimClock>().frame;
     let mut terms = vec![DMat2::ZERO; faces.len()];
     for below in layers_below(&couplings, layer) {
         let (uv, x, lower) = layer_arrays(world, below);
-        add_wavelength_terms(&mut terms, &centroids, &centres, thickness, (&uv, &x, &lower), w);
+        let later = if w.lookahead { keyframe_positions(world, below, frame) } else { Vec::new() };
+        for x in std::iter::once(&x).chain(&later) {
+            add_wavelength_terms(&mut terms, &centroids, &centres, thickness, (&uv, x, &lower), w);
+        }
     }
-    terms
+    grow_terms(&terms, &centroids, w.margin)
+}
+
+/// The positions of a kinematic layer (every coordinate of every vertex prescribed) at each
+/// keyframe after `frame` of the motions that drive it; none for any other layer. Values and
+/// weights are interpolated between keys, so a single motion's extremes are at its keys.
+fn keyframe_positions(world: &World, layer: Entity, frame: u32) -> Vec<Vec<DVec3>> {
+    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
+    if verts.iter().any(|&v| world.get::<Prescribed>(v).is_none_or(|p| p.0 != [true; 3])) {
+        return Vec::new();
+    }
+    let patch = world.iter_entities().find(|e| e.get::<PatchLayers>().is_some_and(|l| l.entities().contains(&layer)));
+    let Some(motion) = patch.and_then(|p| p.get::<PatchMotion>()) else { return Vec::new() };
+    let acting: Vec<&Motion> = motion.motions.iter().filter(|m| m.layers.contains(&layer)).collect();
+    let mut keys: Vec<u32> = acting
+        .iter()
+        .flat_map(|m| match &m.kind {
+            MotionKind::Blend(b) => b.targets.iter().flat_map(|(_, k)| k.0.iter().map(|k| k.0)).collect(),
+            _ => m.keyframes.0.iter().map(|k| k.0).collect::<Vec<_>>(),
+        })
+        .filter(|&k| k > frame)
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    let rest: Vec<DVec3> = verts.iter().map(|&v| world.get::<RestPos>(v).expect("vertex").0).collect();
+    let at = |k: u32| -> Vec<DVec3> {
+        let map = |(i, p): (usize, &DVec3)| acting.iter().fold(*p, |q, m| m.apply(i, q, motion.centre, k as f64));
+        rest.iter().enumerate().map(map).collect()
+    };
+    keys.into_iter().map(at).collect()
 }
 
 /// A layer's material positions, positions and faces (empty for a layer without faces).

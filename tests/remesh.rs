@@ -564,6 +564,59 @@ fn the_wavelength_term_refines_before_the_first_solve() {
     assert!(widest > 1.4e-3, "{widest}");
 }
 
+/// Issue 26 item 1, ahead of the load: with `lookahead` the first remesh (frame 1, before any
+/// solve) reads the compression the kinematic base reaches at its blend shape's last keyframe
+/// (the LK14 fig. 6-4 pinch, full at frame 6), so the epidermis is refined to lambda_2 / 8 in
+/// every direction over the pinched disc and nowhere far from it; without it, the base is not
+/// yet compressed and nothing is refined.
+#[test]
+fn the_lookahead_refines_where_the_driver_will_compress_before_the_load_gets_there() {
+    let refine = |options: &str| {
+        let remesh = format!(
+            "cells: (48, 28), pattern: Equilateral, z: 1.0125),\n                      \
+             material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
+             bending: Some((model: Tan)), remesh: Some((size_min: 0.1, size_max: 1.0, refine_angle: 0.6, refine_compression: 0.05, \
+             wavelength: Some((per_wavelength: 8, onset: 0.5, isotropic: true{options})))))"
+        );
+        let mut text = std::fs::read_to_string(scene_path("lk14/fig6_4_pinch_quick.ron")).unwrap();
+        let from = "cells: (80, 46), pattern: Equilateral, z: 1.0125),\n                      \
+                    material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
+                    bending: Some((model: Tan)))";
+        assert!(text.contains(from));
+        text = text.replace(from, &remesh);
+        let path = scratch_dir("lookahead").join("scene.ron");
+        let scene = skinsim::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = Simulation::new(&scene);
+        // The Remesh stage alone, as in frame 1 (before the Motion stage moves the base).
+        sim.world.resource_mut::<SimClock>().frame = 1;
+        skinsim_systems::remesh::remesh_layers(&mut sim.world);
+        let epidermis = layer(&mut sim, "epidermis");
+        let w = &sim.world;
+        let uv = |v: Entity| w.get::<MaterialPos>(v).unwrap().0;
+        let centre = glam::DVec2::new(12e-3, 6e-3);
+        // The longest edge (material length) with its midpoint within 4 mm of the pinch's
+        // centre, and the shortest 8-10 mm from it (the disc's radius is 6 mm).
+        let (mut inside, mut outside) = (0.0f64, f64::INFINITY);
+        for &e in w.get::<LayerEdges>(epidermis).unwrap().entities() {
+            let [a, b] = w.get::<EdgeVerts>(e).unwrap().0.map(uv);
+            let d = ((a + b) / 2.0).distance(centre);
+            if d < 4e-3 {
+                inside = inside.max(a.distance(b));
+            } else if (8e-3..10e-3).contains(&d) {
+                outside = outside.min(a.distance(b));
+            }
+        }
+        (inside, outside)
+    };
+    let (inside, outside) = refine(", lookahead: true");
+    println!("lookahead: longest edge in the disc {inside:.3e} m, shortest far from it {outside:.3e} m");
+    assert!(inside <= 2e-3 / 8.0 * (1.0 + 1e-9), "{inside}");
+    assert!(outside > 0.45e-3, "{outside}");
+    let (inside, _) = refine("");
+    println!("without: longest edge in the disc {inside:.3e} m");
+    assert!(inside > 0.45e-3, "nothing refined before the load: {inside}");
+}
+
 /// Issue 26 item 2: with `local_solve`, each remesh's changed region is solved to equilibrium
 /// (the rest held) before the frame's solve; the frames still converge with the constraints
 /// held and the layer consistent, and every frame after a changing remesh reports a converged

@@ -304,6 +304,7 @@ fn bad_remesh_settings_name_the_field() {
     for (to, field) in [
         ("Some((per_wavelength: 0.5))", "remesh.wavelength.per_wavelength"),
         ("Some((onset: -1.0))", "remesh.wavelength.onset"),
+        ("Some((margin: -2.0))", "remesh.wavelength.margin"),
     ] {
         mentions(&err(&coupled.replace("Some(())", to)), &[field, "\"film\""]);
     }

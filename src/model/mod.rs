@@ -505,7 +505,10 @@ mod tests {
         };
         let due = |s: &RemeshSettings| (1..=8).filter(|&f| s.due(f)).collect::<Vec<_>>();
         assert_eq!(due(&plain), [2, 5, 8]);
-        let term = RemeshSettings { wavelength: Some(WavelengthSizing { per_wavelength: 8.0, onset: 0.5 }), ..plain };
+        let term = RemeshSettings {
+            wavelength: Some(WavelengthSizing { per_wavelength: 8.0, onset: 0.5, ..Default::default() }),
+            ..plain
+        };
         assert_eq!(due(&term), [1, 4, 7]);
         assert_eq!(due(&RemeshSettings { every: 1, ..plain }), [2, 3, 4, 5, 6, 7, 8]);
     }

@@ -247,13 +247,21 @@ impl Builder {
                         format!("must be a number of at least 1 (got {})", w.per_wavelength),
                     ));
                 }
-                if !(w.onset >= 0.0 && w.onset.is_finite()) {
-                    return Err(self.err(
-                        format!("{at}.wavelength.onset"),
-                        format!("must be a non-negative number (got {})", w.onset),
-                    ));
+                for (field, value) in [("onset", w.onset), ("margin", w.margin)] {
+                    if !(value >= 0.0 && value.is_finite()) {
+                        return Err(self.err(
+                            format!("{at}.wavelength.{field}"),
+                            format!("must be a non-negative number (got {value})"),
+                        ));
+                    }
                 }
-                Ok(crate::mesh::remesh::sizing::WavelengthSizing { per_wavelength: w.per_wavelength, onset: w.onset })
+                Ok(crate::mesh::remesh::sizing::WavelengthSizing {
+                    per_wavelength: w.per_wavelength,
+                    onset: w.onset,
+                    isotropic: w.isotropic,
+                    lookahead: w.lookahead,
+                    margin: w.margin * len,
+                })
             })
             .transpose()?;
         Ok(crate::model::RemeshSettings {

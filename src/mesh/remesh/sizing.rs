@@ -187,10 +187,20 @@ pub fn face_metric(
 /// Wavelength-aware refinement (issue 26): where the compression a layer is driven to passes
 /// `onset` times its critical strain, edges across the wrinkles are at most lambda /
 /// `per_wavelength`, so that the solve that buckles sees a mesh that can hold the mode.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct WavelengthSizing {
     pub per_wavelength: f64,
     pub onset: f64,
+    /// Every edge bounded there, not only those across the compression: the mesh then holds
+    /// wrinkles of any direction and phase (where they form later, or beside the compression
+    /// that drives them, their direction is not the one the driver shows now).
+    pub isotropic: bool,
+    /// Also the compression the kinematic layers below reach at their motions' later keyframes:
+    /// the mesh is refined before the load gets there.
+    pub lookahead: bool,
+    /// And within this material distance (m) of those faces: the layers between spread the
+    /// compression of the driven region around it (a pinched disc's ring of wrinkles).
+    pub margin: f64,
 }
 
 /// The compressive strain at which a plate of thickness h held to wrinkles of wavelength lambda
@@ -212,7 +222,37 @@ pub fn wavelength_term(strain: DMat2, lambda: f64, critical: f64, w: &Wavelength
         return DMat2::ZERO;
     }
     let k = w.per_wavelength / lambda;
+    if w.isotropic {
+        return DMat2::IDENTITY * (k * k);
+    }
     from_eigen([k * k, 0.0], v)
+}
+
+/// `terms` grown by `margin`: a face without a term takes that of the nearest face with one whose
+/// centroid lies within `margin` of its own (the first such face on a tie).
+pub fn grow_terms(terms: &[DMat2], centroids: &[DVec2], margin: f64) -> Vec<DMat2> {
+    if margin <= 0.0 {
+        return terms.to_vec();
+    }
+    let cell = |c: DVec2| ((c.x / margin).floor() as i64, (c.y / margin).floor() as i64);
+    let mut bins: std::collections::HashMap<(i64, i64), Vec<usize>> = std::collections::HashMap::new();
+    for i in (0..terms.len()).filter(|&i| terms[i] != DMat2::ZERO) {
+        bins.entry(cell(centroids[i])).or_default().push(i);
+    }
+    let nearest = |c: DVec2| {
+        let (bx, by) = cell(c);
+        let near = (-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (bx + dx, by + dy)));
+        let candidates = near.filter_map(|b| bins.get(&b)).flatten();
+        candidates
+            .map(|&j| (centroids[j].distance_squared(c), j))
+            .filter(|&(d2, _)| d2 <= margin * margin)
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+    };
+    terms
+        .iter()
+        .zip(centroids)
+        .map(|(&t, &c)| if t != DMat2::ZERO { t } else { nearest(c).map_or(t, |(_, j)| terms[j]) })
+        .collect()
 }
 
 /// The material centroid of each face.

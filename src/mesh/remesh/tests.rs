@@ -202,7 +202,7 @@ fn the_wavelength_term_bounds_edges_across_the_compression_where_it_passes_the_o
     // half to a quarter of it; lambda 0.2, 8 elements per wavelength: edges across x at most 0.025
     // on the left, and nothing asked of the flat, unstrained sheet on the right (size_max).
     let (v, f) = sheet(10, GridPattern::Equilateral, flat);
-    let w = sizing::WavelengthSizing { per_wavelength: 8.0, onset: 0.5 };
+    let w = sizing::WavelengthSizing { per_wavelength: 8.0, onset: 0.5, ..Default::default() };
     let (lambda, critical) = (0.2, 1e-3);
     let terms: Vec<glam::DMat2> = f
         .iter()
@@ -238,7 +238,7 @@ fn the_wavelength_term_bounds_edges_across_the_compression_where_it_passes_the_o
 
 #[test]
 fn the_wavelength_term_follows_the_compression_direction() {
-    let w = sizing::WavelengthSizing { per_wavelength: 10.0, onset: 0.5 };
+    let w = sizing::WavelengthSizing { per_wavelength: 10.0, onset: 0.5, ..Default::default() };
     // Compressed along (1, 1) / sqrt 2, stretched across it.
     let d = DVec2::new(1.0, 1.0).normalize();
     let outer = |u: DVec2| glam::DMat2::from_cols(u * u.x, u * u.y);
@@ -273,4 +273,34 @@ fn a_remesh_is_small_below_min_change_and_changed_by_any_operation() {
     r.stats.splits = 1;
     assert!(!r.is_small(0.01, 100), "one split of 100 faces is 1 %");
     assert!(r.is_small(0.02, 100));
+}
+
+#[test]
+fn the_isotropic_wavelength_term_bounds_every_direction() {
+    let w = sizing::WavelengthSizing { per_wavelength: 8.0, onset: 0.5, isotropic: true, ..Default::default() };
+    let strain = glam::DMat2::from_cols(glam::DVec2::new(-0.02, 0.0), glam::DVec2::new(0.0, 0.001));
+    let k = 8.0 / 0.5;
+    assert_eq!(sizing::wavelength_term(strain, 0.5, 0.01, &w), glam::DMat2::IDENTITY * (k * k));
+    assert_eq!(sizing::wavelength_term(strain, 0.5, 0.05, &w), glam::DMat2::ZERO, "below the onset");
+}
+
+#[test]
+fn grown_terms_reach_the_faces_within_the_margin_and_no_further() {
+    // Faces along a line 1 apart; the term of face 0 and a weaker one at face 10.
+    let centroids: Vec<glam::DVec2> = (0..20).map(|i| glam::DVec2::new(i as f64, 0.0)).collect();
+    let (a, b) = (glam::DMat2::IDENTITY * 4.0, glam::DMat2::IDENTITY);
+    let mut terms = vec![glam::DMat2::ZERO; 20];
+    terms[0] = a;
+    terms[10] = b;
+    assert_eq!(sizing::grow_terms(&terms, &centroids, 0.0), terms, "no margin: unchanged");
+    let grown = sizing::grow_terms(&terms, &centroids, 3.0);
+    for (i, t) in grown.iter().enumerate() {
+        // the nearest term within 3 (face 5 is 5 from both: none)
+        let want = match i {
+            0..=3 => a,
+            7..=13 => b,
+            _ => glam::DMat2::ZERO,
+        };
+        assert_eq!(*t, want, "face {i}");
+    }
 }

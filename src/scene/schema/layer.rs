@@ -97,6 +97,16 @@ pub struct RefineWavelengthSpec {
     /// The fraction of the critical compressive strain from which the bound holds.
     #[serde(default = "default_onset")]
     pub onset: f64,
+    /// Bound every edge there, not only those across the compression (default false).
+    #[serde(default)]
+    pub isotropic: bool,
+    /// Also where the kinematic layers below will be compressed at their drivers' later
+    /// keyframes (default false: the compression of this frame only).
+    #[serde(default)]
+    pub lookahead: bool,
+    /// And within this distance (length units) of those faces (default 0).
+    #[serde(default)]
+    pub margin: f64,
 }
 
 fn default_per_wavelength() -> f64 {
