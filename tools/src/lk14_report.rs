@@ -158,10 +158,11 @@ const CASES: [Case; 4] = [
         // (edges at most half the kernel radius, 0.5 mm: from a coarser start the first remesh
         // splits every edge)
         start: (128, 111),
-        // One remesh, before the first solve, for every wrinkle to come: the ring forms up to
-        // about twice the pinch's radius, so 6 mm around the disc the base will compress; later
-        // remeshes of the wrinkled ring moved its phase off the reference's
-        // (src/mesh/remesh/README.md, "Refining ahead of the load").
+        // One remesh, before the first solve, for every wrinkle to come: the base compresses
+        // only inside the 6 mm disc, the ring forms out to about three times its radius
+        // (18 mm); of the margins measured around the disc the base will compress, 6 mm came
+        // nearest the 256 x 222 reference; later remeshes of the wrinkled ring moved its phase
+        // off the reference's (src/mesh/remesh/README.md, "Refining ahead of the load").
         every: 8,
         ahead_mm: Some(6.0),
         adaptive: &[(0.1, 1.0, 0.6, 0.05)],
