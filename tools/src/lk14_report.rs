@@ -23,6 +23,7 @@ use skinsim_systems::Simulation;
 
 use crate::field_error;
 use crate::plot::{LogLog, Point};
+use crate::report::csv_text;
 use crate::wrinkles::{resample_on_grid, row_peaks};
 
 /// One run of the sweep.
@@ -567,8 +568,8 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: Wavelength
         let _ = writeln!(
             csv,
             "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{:.4},{},{},{:.6}",
-            r.series,
-            r.setting,
+            csv_text(&r.series),
+            csv_text(&r.setting),
             r.mean_vertices,
             r.ms_per_frame,
             r.newton_iterations,

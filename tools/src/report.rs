@@ -106,8 +106,8 @@ fn write_table(out: &Path, rows: &[Row]) -> std::io::Result<()> {
         let _ = writeln!(
             csv,
             "{},{},{},{:.3},{},{:.6},{:.6},{:.6}",
-            r.series,
-            r.resolution,
+            csv_text(r.series),
+            csv_text(&r.resolution),
             r.vertices,
             r.ms_per_increment,
             r.newton_iterations,
@@ -118,6 +118,12 @@ fn write_table(out: &Path, rows: &[Row]) -> std::io::Result<()> {
     }
     std::fs::write(out.join("speed_error.md"), md)?;
     std::fs::write(out.join("speed_error.csv"), csv)
+}
+
+/// A text field of a CSV row: quoted, inner quotes doubled (RFC 4180), so that the commas in a
+/// series' name or a setting stay inside their column.
+pub fn csv_text(text: &str) -> String {
+    format!("\"{}\"", text.replace('"', "\"\""))
 }
 
 fn plot(stem: &Path, rows: &[Row]) -> Result<(), Box<dyn std::error::Error>> {

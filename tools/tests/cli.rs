@@ -366,6 +366,7 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     assert_eq!(table.lines().filter(|l| l.starts_with("| case")).count(), 6, "{table}");
     let csv = std::fs::read_to_string(dir.join("speed_error.csv")).unwrap();
     assert_eq!(csv.lines().count(), 7);
+    assert_columns(&csv);
     let svg = std::fs::read_to_string(dir.join("speed_error.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("case 7, graded substrate"));
     // LK14 (issues 5 and 26): uniform and adaptive series of four cases, two settings each (one
@@ -382,7 +383,10 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     // Axis labels with units, the reference marked, log ticks without float noise.
     assert!(svg.contains("time per frame (ms)") && svg.contains("reference (finest uniform run)"), "{svg}");
     assert!(!svg.contains("0000000"), "a tick label prints float noise");
-    assert_eq!(std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap().lines().count(), 15);
+    let csv = std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 15);
+    // (series and settings hold commas: quoted, every row has the header's columns)
+    assert_columns(&csv);
     for png in ["speed_error.png", "speed_error_lk14.png"] {
         let image = image::open(dir.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert_eq!(image.width(), 1000, "{png}");
@@ -390,6 +394,13 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
         let dark = image.to_luma8().pixels().filter(|p| p.0[0] < 100).count();
         assert!(dark > 2000, "{png}: {dark} dark pixels");
     }
+}
+
+/// Every row of `csv` has as many fields as its header, commas inside quotes not counted.
+fn assert_columns(csv: &str) {
+    let fields = |line: &str| 1 + line.split('"').step_by(2).map(|outside| outside.matches(',').count()).sum::<usize>();
+    let columns = fields(csv.lines().next().unwrap());
+    assert!(csv.lines().all(|l| fields(l) == columns), "{csv}");
 }
 
 /// The LK14 sweep with the quadratic bending element, case 10 only: the table names the element
