@@ -644,3 +644,64 @@ fn a_region_solve_after_each_remesh_converges_and_is_reported() {
     }
     assert!(solved >= 2, "{solved} region solves");
 }
+
+/// Issue 26 items 2 and 3: with `hold`, a remesh after the one that refined ahead of the load
+/// leaves the faces it refined as they were, though the sheet has wrinkled since (the fig. 6-4
+/// pinch's epidermis, refined to lambda_2 / 8 over the disc before any solve, then given
+/// wrinkles the curvature term asks to refine); without it that remesh changes them.
+#[test]
+fn held_faces_survive_a_later_remesh() {
+    let faces_changed = |hold: bool| {
+        let remesh = format!(
+            "cells: (48, 28), pattern: Equilateral, z: 1.0125),\n                      \
+             material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
+             bending: Some((model: Tan)), remesh: Some((size_min: 0.05, size_max: 1.0, refine_angle: 0.6, \
+             refine_compression: 0.05, every: 1, wavelength: Some((per_wavelength: 8, onset: 0.5, isotropic: true, \
+             lookahead: true, hold: {hold})))))"
+        );
+        let mut text = std::fs::read_to_string(scene_path("lk14/fig6_4_pinch_quick.ron")).unwrap();
+        let from = "cells: (80, 46), pattern: Equilateral, z: 1.0125),\n                      \
+                    material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
+                    bending: Some((model: Tan)))";
+        assert!(text.contains(from));
+        text = text.replace(from, &remesh);
+        let path = scratch_dir("hold").join("scene.ron");
+        let scene = skinsim::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = Simulation::new(&scene);
+        let epidermis = layer(&mut sim, "epidermis");
+        let triples = |w: &World| -> HashSet<[Entity; 3]> {
+            let uv = |v: Entity| w.get::<MaterialPos>(v).unwrap().0;
+            let faces = w.get::<LayerFaces>(epidermis).unwrap().entities().to_vec();
+            let verts = faces.iter().map(|&f| w.get::<FaceVerts>(f).unwrap().0);
+            // (the disc, 6 mm around the pinch's centre, less a margin of a few elements)
+            verts
+                .filter(|t| {
+                    (t.map(uv).iter().sum::<glam::DVec2>() / 3.0).distance(glam::DVec2::new(12e-3, 6e-3)) < 5e-3
+                })
+                .collect()
+        };
+        // The Remesh stage alone, in frame 1 (before the Motion stage moves the base), then in
+        // frame 2 after wrinkles of 2 mm, 0.6 mm high, across the whole epidermis.
+        sim.world.resource_mut::<SimClock>().frame = 1;
+        skinsim_systems::remesh::remesh_layers(&mut sim.world);
+        let before = triples(&sim.world);
+        let verts = sim.world.get::<LayerVertices>(epidermis).unwrap().entities().to_vec();
+        for v in verts {
+            let u = sim.world.get::<MaterialPos>(v).unwrap().0;
+            sim.world.get_mut::<Position>(v).unwrap().0.z += 0.6e-3 * (std::f64::consts::TAU * u.x / 2e-3).sin();
+        }
+        sim.world.resource_mut::<SimClock>().frame = 2;
+        skinsim_systems::remesh::remesh_layers(&mut sim.world);
+        let report = *sim.world.get::<RemeshReport>(epidermis).unwrap();
+        assert_eq!(report.frame, 2);
+        assert!(report.stats.splits > 0, "the wrinkles ask for splits: {report:?}");
+        let after = triples(&sim.world);
+        (before.len(), before.difference(&after).count())
+    };
+    let (held, changed) = faces_changed(true);
+    println!("hold: {changed} of the disc's {held} faces changed");
+    assert!(held > 1000 && changed == 0, "{changed} of {held}");
+    let (free, changed) = faces_changed(false);
+    println!("without: {changed} of the disc's {free} faces changed");
+    assert!(changed > free / 2, "{changed} of {free}");
+}

@@ -57,9 +57,10 @@ pub fn remesh_under(
     mut input: Vec<RemeshVertex>,
     faces: &[[u32; 3]],
     extra: &[DMat2],
+    held: &[bool],
     p: &RemeshParams,
 ) -> Remeshed {
-    let Some(imp) = imperfection else { return remesh_sized(&input, faces, extra, p) };
+    let Some(imp) = imperfection else { return remesh_sized(&input, faces, extra, held, p) };
     let split = |v: &[RemeshVertex]| -> (Vec<DVec3>, Vec<DVec2>, Vec<[bool; 3]>) {
         (v.iter().map(|v| v.rest).collect(), v.iter().map(|v| v.uv).collect(), v.iter().map(|v| v.fixed).collect())
     };
@@ -67,7 +68,7 @@ pub fn remesh_under(
     let mut rest = original.clone();
     imp.apply(-1.0, &mut rest, &uv, faces, &fixed, |_| true);
     input.iter_mut().zip(rest).for_each(|(v, r)| v.rest = r);
-    let mut out = remesh_sized(&input, faces, extra, p);
+    let mut out = remesh_sized(&input, faces, extra, held, p);
     let (mut rest, uv, fixed) = split(&out.vertices);
     imp.apply(1.0, &mut rest, &uv, &out.faces, &fixed, |i| out.vertices[i].origin.is_none());
     for (v, r) in out.vertices.iter_mut().zip(rest) {

@@ -261,6 +261,7 @@ impl Builder {
                     isotropic: w.isotropic,
                     lookahead: w.lookahead,
                     margin: w.margin * len,
+                    hold: w.hold,
                 })
             })
             .transpose()?;

@@ -59,10 +59,9 @@ pub struct Lk14Row {
     pub height_error: f64,
     /// Frames whose remesh changed the swept layer's topology.
     pub remeshes: u32,
-    /// Adaptive runs: the Newton iterations of a frame after a remesh at a held load (past the
-    /// last keyframe, remeshing every frame for `HELD_FRAMES`): what a remesh adds, alone;
-    /// mean over those frames whose remesh changed the topology.
-    pub iterations_per_remesh: Option<f64>,
+    /// Adaptive runs: the remeshes at a held load (past the last keyframe, remeshing every frame
+    /// for `HELD_FRAMES`) and what they added.
+    pub held: Option<HeldRemeshes>,
     /// The series' reference run (the finest uniform one).
     pub reference: bool,
     energy: f64,
@@ -179,6 +178,8 @@ const CASES: [Case; 4] = [
 
 /// Each case's name in the maps' file names.
 const CASE_KEYS: [&str; 4] = ["case10", "case11", "pinch", "localized"];
+/// And in the report's `--cases` option.
+const CASE_FLAGS: [&str; 4] = ["10", "11", "pinch", "localized"];
 
 /// Adaptive runs of a case whose index is here refine by the wavelength term too
 /// (`PER_WAVELENGTH` elements per kernel wavelength across the compression, from half the
@@ -249,7 +250,7 @@ pub fn speed_error(
         let count = take(runs.len());
         for (&(lo, hi, angle, c), margin) in runs.into_iter().take(count) {
             let ahead = match margin {
-                Some(m) => format!(", isotropic: true, lookahead: true, margin: {m}"),
+                Some(m) => format!(", isotropic: true, lookahead: true, margin: {m}, hold: true"),
                 None => String::new(),
             };
             let wavelength = if term {
@@ -264,7 +265,7 @@ pub fn speed_error(
             );
             let scene_text = mesh_line(&text, case.mesh, case.start.0, case.start.1, &remesh);
             let by_wavelength = match (term, margin) {
-                (true, Some(m)) => format!(", lambda / {n} ahead, {m} mm around"),
+                (true, Some(m)) => format!(", lambda / {n} ahead, {m} mm around, held"),
                 (true, None) => format!(", lambda / {n}"),
                 (false, _) => String::new(),
             };
@@ -305,7 +306,7 @@ pub fn speed_error(
         }
         rows.extend(series);
     }
-    write(out, &rows, element, wavelength_term)?;
+    write(out, &rows, element, wavelength_term, cases)?;
     plot(&out.join("speed_error_lk14"), &rows)?;
     Ok(rows)
 }
@@ -405,10 +406,10 @@ fn run(
         remeshes += remeshed(&mut sim, case.layer, s.frame);
     }
     let frames = built.scene.frames as f64;
-    // (measured after the timed frames and the final shape, so they change neither)
-    let iterations_per_remesh = if kind == "adaptive" && !quick { held_remeshes(&mut sim, case.layer)? } else { None };
     let ms_per_frame = 1e3 * seconds / frames;
     let (uv, x, faces) = sim.layer_mesh("skin", case.layer);
+    // (measured after the timed frames and the last frame's shape, so they change neither)
+    let held = if kind == "adaptive" && !quick { Some(held_remeshes(&mut sim, case.layer)?) } else { None };
     let size = uv.iter().fold(glam::DVec2::ZERO, |m, u| m.max(*u));
     let cells = ((size.x / 0.1e-3).round() as usize, ((size.y / 0.5e-3).round() as usize).max(2));
     let (guv, gx) = resample_on_grid(&uv, &x, &faces, cells);
@@ -441,7 +442,7 @@ fn run(
         time_ratio_map: None,
         height_error: 0.0,
         remeshes,
-        iterations_per_remesh,
+        held,
         reference: false,
         energy,
         grid: gx,
@@ -453,27 +454,43 @@ fn run(
     Ok(row)
 }
 
+/// What the remeshes of `HELD_FRAMES` frames at a held load did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HeldRemeshes {
+    /// Those that changed the layer's topology.
+    pub changed: u32,
+    /// The Newton iterations of their frames (the previous frame converged at the same load, so
+    /// they are the remeshes' alone).
+    pub iterations: u32,
+}
+
+impl HeldRemeshes {
+    /// The Newton iterations a remesh that changed the mesh added, on average (None: none did).
+    pub fn per_remesh(&self) -> Option<f64> {
+        (self.changed > 0).then(|| f64::from(self.iterations) / f64::from(self.changed))
+    }
+}
+
 /// Frames run past the last keyframe, remeshing every frame, to count what a remesh adds.
 const HELD_FRAMES: u32 = 3;
 
-/// The mean Newton iterations of a frame whose remesh changed `layer`, the load held (the run
-/// past its last keyframe): the previous frame converged at the same load, so the iterations are
-/// the remesh's alone. None when no remesh changed the layer.
-fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<Option<f64>, Box<dyn std::error::Error>> {
+/// The remeshes of `layer` in `HELD_FRAMES` frames with the load held (the run past its last
+/// keyframe), remeshing every frame.
+fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<dyn std::error::Error>> {
     let mut q = sim.world.query::<(&skinsim::model::Layer, &mut skinsim::model::RemeshSettings)>();
     q.iter_mut(&mut sim.world).filter(|(l, _)| l.name == layer).for_each(|(_, mut r)| r.every = 1);
-    let (mut iterations, mut remeshes) = (0, 0);
+    let mut held = HeldRemeshes::default();
     for _ in 0..HELD_FRAMES {
         let s = sim.step();
         if let Some(f) = sim.failure() {
             return Err(f.into());
         }
         if remeshed(sim, layer, s.frame) == 1 {
-            iterations += s.patches[0].newton_iterations;
-            remeshes += 1;
+            held.iterations += s.patches[0].newton_iterations;
+            held.changed += 1;
         }
     }
-    Ok((remeshes > 0).then(|| iterations as f64 / remeshes as f64))
+    Ok(held)
 }
 
 /// 1 when the last step's remesh of `layer` changed its topology.
@@ -485,9 +502,19 @@ fn remeshed(sim: &mut Simulation, layer: &str, frame: u32) -> u32 {
     u32::from(changed)
 }
 
-fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: WavelengthTerm) -> std::io::Result<()> {
+fn write(
+    out: &Path,
+    rows: &[Lk14Row],
+    element: BendingElement,
+    term: WavelengthTerm,
+    cases: &[usize],
+) -> std::io::Result<()> {
     let flag = if element == BendingElement::Hinge { "hinge" } else { "quadratic" };
-    let without = term.flag();
+    let mut without = term.flag().to_string();
+    if !cases.is_empty() {
+        let names: Vec<&str> = cases.iter().map(|&c| CASE_FLAGS[c]).collect();
+        without.push_str(&format!(" --cases {}", names.join(",")));
+    }
     let mut md = format!(
         "# Speed against error, LK14 (VALIDATION.md F, issue 5)\n\n\
          Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --bending {flag}{without} --out \
@@ -517,13 +544,14 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: Wavelength
          RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Iterations per remesh: \
          after the run, {HELD_FRAMES} frames more with the load held (past the last keyframe) and a remesh every \
          frame; the mean Newton iterations of those frames whose remesh changed the topology (the previous frame \
-         converged at the same load: what a remesh adds, alone). Each run's wrinkle map is in maps/ (case, row of the case from 0, \
+         converged at the same load: what a remesh adds, alone), and how many of them did. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
          strain; their first remesh comes before the first solve): by default those of case 10 and the \
          localized pinch, `--wavelength-term all` or `off` for every case or none. Those ending in `ahead, M mm \
-         around` bound every edge, not only those across the compression, where the kinematic base will be \
-         compressed at its last keyframe and M mm around, from the first remesh on.\n\n\
+         around, held` bound every edge, not only those across the compression, where the kinematic base will be \
+         compressed at its last keyframe and M mm around, from the first remesh on, and no later remesh changes \
+         a face there whose edges meet the bound (`hold`).\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
          map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\
@@ -532,7 +560,7 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: Wavelength
     let mut csv = String::from(
         "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
          wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
-         iterations_per_remesh_held,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
+         iterations_per_remesh_held,held_remeshes_changed,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -541,7 +569,10 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: Wavelength
             None => String::new(),
         };
         let (ratio, ratio_energy, ratio_map) = (show(r.time_ratio), show(r.time_ratio_energy), show(r.time_ratio_map));
-        let per_remesh = r.iterations_per_remesh.map_or(String::new(), |n| format!("{n:.1}"));
+        let per_remesh = r.held.map_or(String::new(), |h| match h.per_remesh() {
+            Some(n) => format!("{n:.1} ({} of {HELD_FRAMES} changed it)", h.changed),
+            None => format!("none of {HELD_FRAMES} changed it"),
+        });
         let wavelength = if r.wavelength_error.is_nan() {
             "n/a".to_string()
         } else {
@@ -567,7 +598,7 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: Wavelength
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{:.4},{},{},{:.6}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{:.4},{},{},{:.6}",
             csv_text(&r.series),
             csv_text(&r.setting),
             r.mean_vertices,
@@ -581,7 +612,8 @@ fn write(out: &Path, rows: &[Lk14Row], element: BendingElement, term: Wavelength
             r.time_ratio_energy.map_or(f64::NAN, |t| t.0),
             r.time_ratio_energy.is_some_and(|t| t.1),
             r.remeshes,
-            r.iterations_per_remesh.map_or(f64::NAN, |n| n),
+            r.held.and_then(|h| h.per_remesh()).map_or(f64::NAN, |n| n),
+            r.held.map_or(String::new(), |h| h.changed.to_string()),
             r.map_error.to_degrees(),
             r.time_ratio_map.map_or(f64::NAN, |t| t.0),
             r.time_ratio_map.is_some_and(|t| t.1),

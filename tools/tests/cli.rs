@@ -413,6 +413,7 @@ fn report_sweeps_one_lk14_case_with_the_quadratic_element() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let lk14 = std::fs::read_to_string(dir.join("speed_error_lk14.md")).unwrap();
     assert!(lk14.contains("Quadratic element") && lk14.contains("--bending quadratic"), "{lk14}");
+    assert!(lk14.contains("--cases 10 --out"), "the regenerate line names the cases swept: {lk14}");
     let rows: Vec<&str> = lk14.lines().filter(|l| l.starts_with("| case") || l.starts_with("| fig")).collect();
     assert_eq!(rows.len(), 4, "{lk14}");
     assert!(rows.iter().all(|r| r.starts_with("| case 10")), "{lk14}");

@@ -118,16 +118,23 @@ impl Remeshed {
 /// `vertices[i].origin` is ignored on input and set to Some(i). Deterministic: the same input
 /// gives the same output.
 pub fn remesh(vertices: &[RemeshVertex], faces: &[[u32; 3]], p: &RemeshParams) -> Remeshed {
-    remesh_sized(vertices, faces, &[], p)
+    remesh_sized(vertices, faces, &[], &[], p)
 }
 
-/// `remesh` with one more sizing term per input face (`sizing::wavelength_term`), or none.
-pub fn remesh_sized(vertices: &[RemeshVertex], faces: &[[u32; 3]], extra: &[DMat2], p: &RemeshParams) -> Remeshed {
+/// `remesh` with one more sizing term per input face (`sizing::wavelength_term`), or none, and
+/// the input faces no operation may change (`held`, one per face, or none).
+pub fn remesh_sized(
+    vertices: &[RemeshVertex],
+    faces: &[[u32; 3]],
+    extra: &[DMat2],
+    held: &[bool],
+    p: &RemeshParams,
+) -> Remeshed {
     let uv: Vec<DVec2> = vertices.iter().map(|v| v.uv).collect();
     let x: Vec<DVec3> = vertices.iter().map(|v| v.x).collect();
     let vel: Vec<DVec3> = vertices.iter().map(|v| v.v).collect();
     let sizing = sizing::vertex_sizing(&uv, &x, p.refine_velocity.map(|_| vel.as_slice()), faces, extra, p);
-    let mut mesh = ops::WorkMesh::new(vertices, faces, sizing, p);
+    let mut mesh = ops::WorkMesh::new(vertices, faces, sizing, held, p);
     mesh.flip_all();
     mesh.refine();
     mesh.coarsen();

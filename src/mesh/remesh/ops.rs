@@ -41,6 +41,8 @@ pub(super) struct WorkMesh<'a> {
     corner: Vec<bool>,
     faces: Vec<[u32; 3]>,
     f_alive: Vec<bool>,
+    /// Faces no operation may change (an input face held; every new face is free).
+    f_held: Vec<bool>,
     /// Alive faces around each vertex.
     vf: Vec<Vec<u32>>,
     /// Flip passes: a vertex is touched in the current pass when its mark equals `pass`.
@@ -57,7 +59,13 @@ fn cross(a: DVec2, b: DVec2) -> f64 {
 }
 
 impl<'a> WorkMesh<'a> {
-    pub(super) fn new(vertices: &[RemeshVertex], faces: &[[u32; 3]], sizing: Vec<DMat2>, p: &'a RemeshParams) -> Self {
+    pub(super) fn new(
+        vertices: &[RemeshVertex],
+        faces: &[[u32; 3]],
+        sizing: Vec<DMat2>,
+        held: &[bool],
+        p: &'a RemeshParams,
+    ) -> Self {
         let n = vertices.len();
         let verts: Vec<RemeshVertex> =
             vertices.iter().enumerate().map(|(i, v)| RemeshVertex { origin: Some(i as u32), ..*v }).collect();
@@ -79,6 +87,7 @@ impl<'a> WorkMesh<'a> {
             corner: vec![false; n],
             faces: faces.to_vec(),
             f_alive: vec![true; faces.len()],
+            f_held: (0..faces.len()).map(|f| held.get(f).copied().unwrap_or(false)).collect(),
             vf,
             mark: vec![0; n],
             pass: 0,
@@ -169,6 +178,7 @@ impl<'a> WorkMesh<'a> {
         let id = self.faces.len() as u32;
         self.faces.push(f);
         self.f_alive.push(true);
+        self.f_held.push(false);
         for &v in &f {
             self.vf[v as usize].push(id);
         }
@@ -235,7 +245,8 @@ impl<'a> WorkMesh<'a> {
             }
             bad.sort_by(|x, y| y.0.total_cmp(&x.0).then((x.1, x.2).cmp(&(y.1, y.2))));
             for (_, a, b) in bad {
-                if self.edge_faces(a, b).1 == 0 || self.size(a, b) <= 1.0 {
+                let (ef, count) = self.edge_faces(a, b);
+                if count == 0 || self.size(a, b) <= 1.0 || ef[..count].iter().any(|&(f, _)| self.f_held[f as usize]) {
                     continue;
                 }
                 let m = self.split(a, b);
@@ -261,7 +272,7 @@ impl<'a> WorkMesh<'a> {
     /// well-formed; returns the two faces.
     fn try_flip(&mut self, a: u32, b: u32) -> Option<[u32; 2]> {
         let (ef, count) = self.edge_faces(a, b);
-        if count != 2 {
+        if count != 2 || ef.iter().any(|&(f, _)| self.f_held[f as usize]) {
             return None;
         }
         // ef[0] holds a -> b (opposite c), ef[1] holds b -> a (opposite d), or the reverse.
@@ -338,6 +349,10 @@ impl<'a> WorkMesh<'a> {
     fn try_collapse(&mut self, v: u32, w: u32) -> bool {
         let (ef, count) = self.edge_faces(v, w);
         if count == 0 || (self.boundary[v as usize] && count != 1) {
+            return false;
+        }
+        // (every face around v changes)
+        if self.vf[v as usize].iter().any(|&f| self.f_held[f as usize]) {
             return false;
         }
         // Link condition: v and w share exactly the edge's opposite vertices (stays manifold).

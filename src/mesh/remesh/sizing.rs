@@ -201,6 +201,11 @@ pub struct WavelengthSizing {
     /// And within this material distance (m) of those faces: the layers between spread the
     /// compression of the driven region around it (a pinched disc's ring of wrinkles).
     pub margin: f64,
+    /// Leave alone the faces under the term whose edges already meet its bound (`held_faces`):
+    /// refined before they wrinkle, they are not remeshed again once they have (issue 26 items
+    /// 2 and 3; a remesh of a wrinkled region lets its pattern relax, which costs Newton
+    /// iterations at every remesh).
+    pub hold: bool,
 }
 
 /// The compressive strain at which a plate of thickness h held to wrinkles of wavelength lambda
@@ -252,6 +257,22 @@ pub fn grow_terms(terms: &[DMat2], centroids: &[DVec2], margin: f64) -> Vec<DMat
         .iter()
         .zip(centroids)
         .map(|(&t, &c)| if t != DMat2::ZERO { t } else { nearest(c).map_or(t, |(_, j)| terms[j]) })
+        .collect()
+}
+
+/// The faces a remesh leaves alone under `WavelengthSizing::hold`: those with a wavelength term
+/// (`terms`, one per face) whose every edge is at most `slack` long in it.
+pub fn held_faces(terms: &[DMat2], uv: &[DVec2], faces: &[[u32; 3]], slack: f64) -> Vec<bool> {
+    faces
+        .iter()
+        .zip(terms)
+        .map(|(f, &t)| {
+            t != DMat2::ZERO
+                && (0..3).all(|k| {
+                    let e = uv[f[(k + 1) % 3] as usize] - uv[f[k] as usize];
+                    e.dot(t * e) <= slack * slack
+                })
+        })
         .collect()
 }
 

@@ -214,7 +214,7 @@ fn the_wavelength_term_bounds_edges_across_the_compression_where_it_passes_the_o
         })
         .collect();
     let p = params(0.005, 0.2);
-    let out = remesh_sized(&v, &f, &terms, &p);
+    let out = remesh_sized(&v, &f, &terms, &[], &p);
     check(&out, 1.0);
     let bound = lambda / w.per_wavelength;
     let (mut left, mut right) = (Vec::new(), Vec::new());
@@ -303,4 +303,55 @@ fn grown_terms_reach_the_faces_within_the_margin_and_no_further() {
         };
         assert_eq!(*t, want, "face {i}");
     }
+}
+
+#[test]
+fn held_faces_are_those_under_the_term_whose_edges_meet_its_bound() {
+    // Three faces: edges up to 0.141 under a bound of 0.15 (held), under a bound of 0.05
+    // (not yet refined: free), and no term (free).
+    let uv = [(0.0, 0.0), (0.1, 0.0), (0.0, 0.1)].map(|(x, y)| DVec2::new(x, y));
+    let faces = [[0u32, 1, 2]; 3];
+    let iso = |h: f64| glam::DMat2::IDENTITY / (h * h);
+    let terms = [iso(0.15), iso(0.05), glam::DMat2::ZERO];
+    assert_eq!(sizing::held_faces(&terms, &uv, &faces, 1.0), vec![true, false, false]);
+    // (the hypotenuse, 0.141, is within 1.5 x 0.1 but not within 1.0 x 0.1)
+    assert_eq!(sizing::held_faces(&[iso(0.1)], &uv, &faces[..1], 1.0), vec![false]);
+    assert_eq!(sizing::held_faces(&[iso(0.1)], &uv, &faces[..1], 1.5), vec![true]);
+}
+
+#[test]
+fn a_remesh_leaves_held_faces_as_they_were() {
+    // A sheet curved along x asks for splits everywhere; the faces of the left half are held:
+    // every one comes out with the same vertices (by origin) and the same positions, while the
+    // right half is refined.
+    let bend = |u: DVec2| DVec3::new(u.x, u.y, 0.05 * (12.0 * u.x).sin());
+    let (v, f) = sheet(8, GridPattern::Equilateral, bend);
+    let centre = |t: &[u32; 3]| t.iter().map(|&i| v[i as usize].uv).sum::<DVec2>() / 3.0;
+    let held: Vec<bool> = f.iter().map(|t| centre(t).x < 0.5).collect();
+    let p = params(0.01, 0.5);
+    let free = remesh_sized(&v, &f, &[], &[], &p);
+    assert!(free.stats.splits > 0, "the curvature asks for splits: {:?}", free.stats);
+    let out = remesh_sized(&v, &f, &[], &held, &p);
+    check(&out, 1.0);
+    let mut kept: Vec<[u32; 3]> = out
+        .faces
+        .iter()
+        .filter_map(|t| {
+            let o = t.map(|i| out.vertices[i as usize].origin);
+            o.iter().all(|o| o.is_some()).then(|| o.map(|o| o.unwrap()))
+        })
+        .collect();
+    for t in f.iter().zip(&held).filter(|(_, h)| **h).map(|(t, _)| t) {
+        let found = kept.iter().position(|k| (0..3).any(|r| [k[r], k[(r + 1) % 3], k[(r + 2) % 3]] == *t));
+        let at = found.unwrap_or_else(|| panic!("held face {t:?} changed"));
+        kept.swap_remove(at);
+        for &i in t {
+            let o = out.vertices.iter().find(|w| w.origin == Some(i)).expect("a held face's vertex");
+            assert_eq!((o.uv, o.x), (v[i as usize].uv, v[i as usize].x));
+        }
+    }
+    let right = |m: &Remeshed| m.faces.iter().filter(|t| t.iter().any(|&i| m.vertices[i as usize].uv.x > 0.55)).count();
+    let before = f.iter().filter(|t| centre(t).x > 0.55).count();
+    assert!(right(&out) > 2 * before, "the free half refined: {} faces from {before}", right(&out));
+    assert!(out.stats.splits > 0 && out.vertices.len() < free.vertices.len());
 }

@@ -107,6 +107,10 @@ pub struct RefineWavelengthSpec {
     /// And within this distance (length units) of those faces (default 0).
     #[serde(default)]
     pub margin: f64,
+    /// Leave alone the faces there whose edges already meet the bound: refined before they
+    /// wrinkle, they are not remeshed again (default false).
+    #[serde(default)]
+    pub hold: bool,
 }
 
 fn default_per_wavelength() -> f64 {
