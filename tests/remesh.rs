@@ -564,6 +564,24 @@ fn the_wavelength_term_refines_before_the_first_solve() {
     assert!(widest > 1.4e-3, "{widest}");
 }
 
+/// The LK14 fig. 6-4 pinch (quick) with its epidermis started at 48 x 28 cells and remeshed with
+/// `remesh` (the fields of its `remesh: Some((..))`), in a scratch directory named `dir`.
+fn pinch_with_remeshed_epidermis(dir: &str, remesh: &str) -> Simulation {
+    let layer = format!(
+        "cells: (48, 28), pattern: Equilateral, z: 1.0125),\n                      \
+         material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
+         bending: Some((model: Tan)), remesh: Some(({remesh})))"
+    );
+    let text = std::fs::read_to_string(scene_path("lk14/fig6_4_pinch_quick.ron")).unwrap();
+    let from = "cells: (80, 46), pattern: Equilateral, z: 1.0125),\n                      \
+                material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
+                bending: Some((model: Tan)))";
+    assert!(text.contains(from));
+    let path = scratch_dir(dir).join("scene.ron");
+    let scene = skinsim::scene::load_str(&text.replace(from, &layer), &path).unwrap_or_else(|e| panic!("{e}"));
+    Simulation::new(&scene)
+}
+
 /// Issue 26 item 1, ahead of the load: with `lookahead` the first remesh (frame 1, before any
 /// solve) reads the compression the kinematic base reaches at its blend shape's last keyframe
 /// (the LK14 fig. 6-4 pinch, full at frame 6), so the epidermis is refined to lambda_2 / 8 in
@@ -572,21 +590,13 @@ fn the_wavelength_term_refines_before_the_first_solve() {
 #[test]
 fn the_lookahead_refines_where_the_driver_will_compress_before_the_load_gets_there() {
     let refine = |options: &str| {
-        let remesh = format!(
-            "cells: (48, 28), pattern: Equilateral, z: 1.0125),\n                      \
-             material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
-             bending: Some((model: Tan)), remesh: Some((size_min: 0.1, size_max: 1.0, refine_angle: 0.6, refine_compression: 0.05, \
-             wavelength: Some((per_wavelength: 8, onset: 0.5, isotropic: true{options})))))"
+        let mut sim = pinch_with_remeshed_epidermis(
+            "lookahead",
+            &format!(
+                "size_min: 0.1, size_max: 1.0, refine_angle: 0.6, refine_compression: 0.05, \
+                 wavelength: Some((per_wavelength: 8, onset: 0.5, isotropic: true{options}))"
+            ),
         );
-        let mut text = std::fs::read_to_string(scene_path("lk14/fig6_4_pinch_quick.ron")).unwrap();
-        let from = "cells: (80, 46), pattern: Equilateral, z: 1.0125),\n                      \
-                    material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
-                    bending: Some((model: Tan)))";
-        assert!(text.contains(from));
-        text = text.replace(from, &remesh);
-        let path = scratch_dir("lookahead").join("scene.ron");
-        let scene = skinsim::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
-        let mut sim = Simulation::new(&scene);
         // The Remesh stage alone, as in frame 1 (before the Motion stage moves the base).
         sim.world.resource_mut::<SimClock>().frame = 1;
         skinsim_systems::remesh::remesh_layers(&mut sim.world);
@@ -652,22 +662,13 @@ fn a_region_solve_after_each_remesh_converges_and_is_reported() {
 #[test]
 fn held_faces_survive_a_later_remesh() {
     let faces_changed = |hold: bool| {
-        let remesh = format!(
-            "cells: (48, 28), pattern: Equilateral, z: 1.0125),\n                      \
-             material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
-             bending: Some((model: Tan)), remesh: Some((size_min: 0.05, size_max: 1.0, refine_angle: 0.6, \
-             refine_compression: 0.05, every: 1, wavelength: Some((per_wavelength: 8, onset: 0.5, isotropic: true, \
-             lookahead: true, hold: {hold})))))"
+        let mut sim = pinch_with_remeshed_epidermis(
+            "hold",
+            &format!(
+                "size_min: 0.05, size_max: 1.0, refine_angle: 0.6, refine_compression: 0.05, every: 1, \
+                 wavelength: Some((per_wavelength: 8, onset: 0.5, isotropic: true, lookahead: true, hold: {hold}))"
+            ),
         );
-        let mut text = std::fs::read_to_string(scene_path("lk14/fig6_4_pinch_quick.ron")).unwrap();
-        let from = "cells: (80, 46), pattern: Equilateral, z: 1.0125),\n                      \
-                    material: (model: BazantHencky, young: 64.0, poisson: 0.45, thickness: 0.025),\n                      \
-                    bending: Some((model: Tan)))";
-        assert!(text.contains(from));
-        text = text.replace(from, &remesh);
-        let path = scratch_dir("hold").join("scene.ron");
-        let scene = skinsim::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
-        let mut sim = Simulation::new(&scene);
         let epidermis = layer(&mut sim, "epidermis");
         let triples = |w: &World| -> HashSet<[Entity; 3]> {
             let uv = |v: Entity| w.get::<MaterialPos>(v).unwrap().0;
