@@ -62,8 +62,11 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
         Some(w) => wavelength_terms(world, layer, kernels, (&input, &faces), &w),
         None => Vec::new(),
     };
+    // (nothing is held at a layer's first remesh: nothing has been refined yet, and a start mesh
+    // within `HOLD_SLACK` of the bound would never be refined to it)
+    let refined = world.get::<RemeshReport>(layer).is_some_and(|r| r.frame > 0);
     let held = match settings.wavelength {
-        Some(w) if w.hold => {
+        Some(w) if w.hold && refined => {
             let uv: Vec<DVec2> = input.iter().map(|v| v.uv).collect();
             held_faces(&extra, &uv, &faces, HOLD_SLACK)
         }

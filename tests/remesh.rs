@@ -706,3 +706,29 @@ fn held_faces_survive_a_later_remesh() {
     println!("without: {changed} of the disc's {free} faces changed");
     assert!(changed > free / 2, "{changed} of {free}");
 }
+
+/// `hold` holds nothing at a layer's first remesh: the pinch's start edges (0.5 mm) are within
+/// its slack of lambda_2 / 5 = 0.4 mm, and the first remesh still refines them to the bound, as
+/// it does without `hold`.
+#[test]
+fn hold_leaves_the_first_remesh_free() {
+    let vertices_after_the_first_remesh = |hold: bool| {
+        let mut sim = pinch_with_remeshed_epidermis(
+            &format!("hold_first_{hold}"),
+            &format!(
+                "size_min: 0.05, size_max: 1.0, refine_angle: 0.6, refine_compression: 0.05, every: 1, \
+                 wavelength: Some((per_wavelength: 5, onset: 0.5, isotropic: true, lookahead: true, hold: {hold}))"
+            ),
+        );
+        let epidermis = layer(&mut sim, "epidermis");
+        let count = |w: &World| w.get::<LayerVertices>(epidermis).unwrap().entities().len();
+        let start = count(&sim.world);
+        sim.world.resource_mut::<SimClock>().frame = 1;
+        skinsim_systems::remesh::remesh_layers(&mut sim.world);
+        (start, count(&sim.world))
+    };
+    let (start, held) = vertices_after_the_first_remesh(true);
+    let (_, free) = vertices_after_the_first_remesh(false);
+    println!("epidermis vertices {start} -> {held} with hold, {free} without");
+    assert!(held > start + 100 && held == free, "{start} -> {held} with hold, {free} without");
+}

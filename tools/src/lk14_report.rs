@@ -95,13 +95,23 @@ struct Case {
     start: (u32, u32),
     adaptive: &'static [(f64, f64, f64, f64)],
     every: u32,
-    /// With the wavelength term: refined ahead of the load (`lookahead`), in every direction
-    /// (`isotropic`), and each of these many mm around (`margin`), a run of every setting for
-    /// each; empty: across this frame's compression.
-    ahead_mm: &'static [f64],
+    /// With the wavelength term: refined ahead of the load and held (`Ahead`); None: across
+    /// this frame's compression, every setting at `PER_WAVELENGTH`.
+    ahead: Option<Ahead>,
     /// Runs of each series that `--quick` keeps (the first: the coarsest uniform meshes, the first
     /// adaptive settings).
     quick: usize,
+}
+
+/// Adaptive runs with the wavelength term refined ahead of the load (`lookahead`), before the
+/// first solve, and held there after (`hold`): a run of the first setting for each margin and
+/// each number of elements per wavelength.
+struct Ahead {
+    /// Every edge bounded (`isotropic`), not only those across the compression.
+    isotropic: bool,
+    /// Grown this many mm around where the base will compress (`margin`).
+    margins_mm: &'static [f64],
+    per_wavelength: &'static [u32],
 }
 
 const CASES: [Case; 4] = [
@@ -115,7 +125,12 @@ const CASES: [Case; 4] = [
         uniform: &[(64, 9), (96, 13), (128, 18), (192, 27), (256, 36), (384, 54), (512, 72)],
         start: (64, 9),
         every: 3,
-        ahead_mm: &[],
+        // The whole strip compresses, across its length: refined across it before the first
+        // solve and held, each run's one remesh (held, the angle sets nothing). Measured against
+        // the term on this frame's compression at lambda / 8 and the four angles 0.4-0.2, one
+        // run each: map ratios 0.43-0.52 against 0.72-1.89, shape 0.54-0.65 against 1.01-3.45
+        // (src/mesh/remesh/README.md, "Cases 10 and 11 read at the last frame").
+        ahead: Some(Ahead { isotropic: false, margins_mm: &[0.0], per_wavelength: &[6, 8, 12] }),
         adaptive: &[(0.25, 3.0, 0.4, 0.05), (0.25, 3.0, 0.3, 0.03), (0.25, 3.0, 0.2, 0.02), (0.25, 3.0, 0.2, 0.01)],
         quick: 2,
     },
@@ -129,7 +144,9 @@ const CASES: [Case; 4] = [
         uniform: &[(48, 28), (64, 37), (96, 55), (128, 74)],
         start: (48, 28),
         every: 3,
-        ahead_mm: &[],
+        // (refined ahead across the compression and held, at lambda_2 / 8, its frame 4 stopped
+        // at the iteration cap and a later one went non-finite)
+        ahead: None,
         adaptive: &[(0.1, 1.0, 0.6, 0.05), (0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.01), (0.1, 1.0, 0.2, 0.01)],
         quick: 2,
     },
@@ -144,7 +161,7 @@ const CASES: [Case; 4] = [
         uniform: &[(64, 37), (96, 55), (128, 74)],
         start: (64, 37),
         every: 1,
-        ahead_mm: &[],
+        ahead: None,
         adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
         quick: 2,
     },
@@ -169,7 +186,7 @@ const CASES: [Case; 4] = [
         // around where the base will compress; later remeshes of the wrinkled ring moved its
         // phase off the reference's (src/mesh/remesh/README.md, "Refining ahead of the load").
         every: 8,
-        ahead_mm: &[6.0, 9.0],
+        ahead: Some(Ahead { isotropic: true, margins_mm: &[6.0, 9.0], per_wavelength: &[PER_WAVELENGTH] }),
         adaptive: &[(0.1, 1.0, 0.6, 0.05)],
         // (its runs are the sweep's largest: one of each keeps the quick test short)
         quick: 1,
@@ -242,19 +259,24 @@ pub fn speed_error(
         }
         let ci = CASES.iter().position(|c| std::ptr::eq(c, case)).expect("a case");
         let term = wavelength_term.applies(ci);
-        let n = PER_WAVELENGTH;
-        // (one run of every setting with each margin; a single run when the case has none)
-        let margins: Vec<Option<f64>> =
-            if case.ahead_mm.is_empty() { vec![None] } else { case.ahead_mm.iter().map(|&m| Some(m)).collect() };
-        let runs: Vec<_> = case.adaptive.iter().flat_map(|s| margins.iter().map(move |m| (s, *m))).collect();
+        // (every setting without the term or without `ahead`; with both, the first setting at each
+        // margin and number of elements per wavelength)
+        let runs: Vec<_> = match (&case.ahead, term) {
+            (Some(a), true) => a
+                .margins_mm
+                .iter()
+                .flat_map(|&m| a.per_wavelength.iter().map(move |&n| (&case.adaptive[0], Some((m, a.isotropic)), n)))
+                .collect(),
+            _ => case.adaptive.iter().map(|s| (s, None, PER_WAVELENGTH)).collect(),
+        };
         let count = take(runs.len());
-        for (&(lo, hi, angle, c), margin) in runs.into_iter().take(count) {
-            let ahead = match margin {
-                Some(m) => format!(", isotropic: true, lookahead: true, margin: {m}, hold: true"),
+        for (&(lo, hi, angle, c), ahead, n) in runs.into_iter().take(count) {
+            let lookahead = match ahead {
+                Some((m, isotropic)) => format!(", isotropic: {isotropic}, lookahead: true, margin: {m}, hold: true"),
                 None => String::new(),
             };
             let wavelength = if term {
-                format!(", wavelength: Some((per_wavelength: {n}, onset: 0.5{ahead}))")
+                format!(", wavelength: Some((per_wavelength: {n}, onset: 0.5{lookahead}))")
             } else {
                 String::new()
             };
@@ -264,8 +286,9 @@ pub fn speed_error(
                  every: {every}{wavelength}))"
             );
             let scene_text = mesh_line(&text, case.mesh, case.start.0, case.start.1, &remesh);
-            let by_wavelength = match (term, margin) {
-                (true, Some(m)) => format!(", lambda / {n} ahead, {m} mm around, held"),
+            let by_wavelength = match (term, ahead) {
+                (true, Some((0.0, _))) => format!(", lambda / {n} ahead, held"),
+                (true, Some((m, _))) => format!(", lambda / {n} ahead, {m} mm around, held"),
                 (true, None) => format!(", lambda / {n}"),
                 (false, _) => String::new(),
             };
@@ -548,10 +571,11 @@ fn write(
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
          strain; their first remesh comes before the first solve): by default those of case 10 and the \
-         localized pinch, `--wavelength-term all` or `off` for every case or none. Those ending in `ahead, M mm \
-         around, held` bound every edge, not only those across the compression, where the kinematic base will be \
-         compressed at its last keyframe and M mm around, from the first remesh on, and no later remesh changes \
-         a face there whose edges meet the bound (`hold`).\n\n\
+         localized pinch, `--wavelength-term all` or `off` for every case or none. Those ending in `ahead, held` \
+         (case 10) bound the edges across the compression where the kinematic base will be compressed at its \
+         last keyframe, from the first remesh on, and no later remesh changes a face there whose edges meet the \
+         bound (`hold`); those ending in `ahead, M mm around, held` (the localized pinch) bound every edge there \
+         and M mm around.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
          map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\

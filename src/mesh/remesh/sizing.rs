@@ -201,10 +201,10 @@ pub struct WavelengthSizing {
     /// And within this material distance (m) of those faces: the layers between spread the
     /// compression of the driven region around it (a pinched disc's ring of wrinkles).
     pub margin: f64,
-    /// Leave alone the faces under the term whose edges already meet its bound (`held_faces`):
-    /// refined before they wrinkle, they are not remeshed again once they have (issue 26 items
-    /// 2 and 3; a remesh of a wrinkled region lets its pattern relax, which costs Newton
-    /// iterations at every remesh).
+    /// At every remesh after the layer's first, leave alone the faces under the term whose edges
+    /// already meet its bound (`held_faces`): refined before they wrinkle, they are not
+    /// remeshed again once they have (issue 26 items 2 and 3; a remesh of a wrinkled region
+    /// lets its pattern relax, which costs Newton iterations at every remesh).
     pub hold: bool,
 }
 
