@@ -199,8 +199,8 @@ const CASE_KEYS: [&str; 4] = ["case10", "case11", "pinch", "localized"];
 const CASE_FLAGS: [&str; 4] = ["10", "11", "pinch", "localized"];
 
 /// Adaptive runs of a case whose index is here refine by the wavelength term too
-/// (`PER_WAVELENGTH` elements per kernel wavelength across the compression, from half the
-/// critical strain) by default. Case 11 and the fig. 6-4 pinch are not: their compression
+/// (`PER_WAVELENGTH` elements per kernel wavelength across the compression, or those of the
+/// case's `Ahead`, from half the critical strain) by default. Case 11 and the fig. 6-4 pinch are not: their compression
 /// covers most of the patch, so the term asks for the finest uniform mesh's spacing there, and
 /// it did not pay (src/mesh/remesh/README.md, "The wavelength term on the sweeps").
 const WAVELENGTH_CASES: [usize; 2] = [0, 3];
