@@ -125,22 +125,9 @@ fn keyframe_positions(world: &World, layer: Entity, frame: u32) -> Vec<Vec<DVec3
     let patch = world.iter_entities().find(|e| e.get::<PatchLayers>().is_some_and(|l| l.entities().contains(&layer)));
     let Some(motion) = patch.and_then(|p| p.get::<PatchMotion>()) else { return Vec::new() };
     let acting: Vec<&Motion> = motion.motions.iter().filter(|m| m.layers.contains(&layer)).collect();
-    let mut keys: Vec<u32> = acting
-        .iter()
-        .flat_map(|m| match &m.kind {
-            MotionKind::Blend(b) => b.targets.iter().flat_map(|(_, k)| k.0.iter().map(|k| k.0)).collect(),
-            _ => m.keyframes.0.iter().map(|k| k.0).collect::<Vec<_>>(),
-        })
-        .filter(|&k| k > frame)
-        .collect();
-    keys.sort_unstable();
-    keys.dedup();
     let rest: Vec<DVec3> = verts.iter().map(|&v| world.get::<RestPos>(v).expect("vertex").0).collect();
-    let at = |k: u32| -> Vec<DVec3> {
-        let map = |(i, p): (usize, &DVec3)| acting.iter().fold(*p, |q, m| m.apply(i, q, motion.centre, k as f64));
-        rest.iter().enumerate().map(map).collect()
-    };
-    keys.into_iter().map(at).collect()
+    let at = |k: u32| pose_at(&acting, &rest, motion.centre, f64::from(k));
+    keyframes_after(&acting, frame).into_iter().map(at).collect()
 }
 
 /// A layer's material positions, positions and faces (empty for a layer without faces).

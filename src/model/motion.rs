@@ -129,6 +129,27 @@ impl Motion {
     }
 }
 
+/// The keyframes after `frame` of `motions` (a blend shape's: its targets' weight keys), sorted,
+/// each once.
+pub fn keyframes_after(motions: &[&Motion], frame: u32) -> Vec<u32> {
+    let mut keys: Vec<u32> = motions
+        .iter()
+        .flat_map(|m| match &m.kind {
+            MotionKind::Blend(b) => b.targets.iter().flat_map(|(_, k)| k.0.iter().map(|k| k.0)).collect(),
+            _ => m.keyframes.0.iter().map(|k| k.0).collect::<Vec<_>>(),
+        })
+        .filter(|&k| k > frame)
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    keys
+}
+
+/// `rest` moved by each of `motions` in turn at `frame`, about `centre`.
+pub fn pose_at(motions: &[&Motion], rest: &[DVec3], centre: DVec3, frame: f64) -> Vec<DVec3> {
+    rest.iter().enumerate().map(|(i, &p)| motions.iter().fold(p, |q, m| m.apply(i, q, centre, frame))).collect()
+}
+
 /// The motions that drive a patch's prescribed coordinates, and the centre they act about.
 #[derive(Component, Clone, Debug, Default)]
 pub struct PatchMotion {
@@ -184,6 +205,25 @@ mod tests {
         assert_eq!(k.at(15.0, Interpolation::Linear), 0.75);
         assert_eq!(k.at(99.0, Interpolation::Linear), 0.5);
         assert_eq!(k.at(7.0, Interpolation::Linear), 0.7);
+    }
+
+    #[test]
+    fn later_keyframes_are_sorted_once_and_posed_in_turn() {
+        let b = BlendShape {
+            targets: vec![(vec![DVec3::X], Keyframes(vec![(0, 0.0), (6, 1.0)]))],
+            interpolation: Interpolation::Linear,
+        };
+        let blend = Motion { layers: vec![], kind: MotionKind::Blend(b), keyframes: Keyframes(vec![(9, 9.0)]) };
+        let squeeze = Motion {
+            layers: vec![],
+            kind: MotionKind::Compress { axis: 0, predict: false },
+            keyframes: Keyframes(vec![(0, 0.0), (3, 0.5), (6, 0.5)]),
+        };
+        let both = [&blend, &squeeze];
+        assert_eq!(keyframes_after(&both, 2), vec![3, 6], "the blend's own keys are not its weights'");
+        assert_eq!(keyframes_after(&both, 6), Vec::<u32>::new());
+        // (displaced by the blend, then squeezed to half about the origin)
+        assert_eq!(pose_at(&both, &[DVec3::new(1.0, 2.0, 0.0)], DVec3::ZERO, 6.0), vec![DVec3::new(1.0, 2.0, 0.0)]);
     }
 
     #[test]
