@@ -88,7 +88,11 @@ const HOLD_SLACK: f64 = 1.5;
 
 /// The wavelength term of each face of `layer` (issue 26 item 1; `sizing::add_wavelength_terms`):
 /// lambda(x) the wavelength of the nearest kernel holding the layer (twice its radius, LK14
-/// 4.1), the strain that of every layer below it (`coupling::kernels::layers_below`).
+/// 4.1), the strain that of every layer below it (`coupling::kernels::layers_below`); under
+/// `lookahead`, of the kinematic ones only, now and at their later keyframes: the mesh is then
+/// the driver's, and the compression the layers between take once the wrinkles form (beyond
+/// the ring of a pinch) does not refine it again after the fact (the `margin` stands for their
+/// spread; src/mesh/remesh/README.md, "The frame-9 refinement is the wavelength term's").
 fn wavelength_terms(
     world: &World,
     layer: Entity,
@@ -105,8 +109,12 @@ fn wavelength_terms(
     let frame = world.resource::<SimClock>().frame;
     let mut terms = vec![DMat2::ZERO; faces.len()];
     for below in layers_below(&couplings, layer) {
+        let later = match (w.lookahead, keyframe_positions(world, below, frame)) {
+            (false, _) => Vec::new(),
+            (true, Some(later)) => later,
+            (true, None) => continue,
+        };
         let (uv, x, lower) = layer_arrays(world, below);
-        let later = if w.lookahead { keyframe_positions(world, below, frame) } else { Vec::new() };
         for x in std::iter::once(&x).chain(&later) {
             add_wavelength_terms(&mut terms, &centroids, &centres, thickness, (&uv, x, &lower), w);
         }
@@ -115,19 +123,20 @@ fn wavelength_terms(
 }
 
 /// The positions of a kinematic layer (every coordinate of every vertex prescribed) at each
-/// keyframe after `frame` of the motions that drive it; none for any other layer. Values and
-/// weights are interpolated between keys, so a single motion's extremes are at its keys.
-fn keyframe_positions(world: &World, layer: Entity, frame: u32) -> Vec<Vec<DVec3>> {
+/// keyframe after `frame` of the motions that drive it (none without a motion); None for any
+/// other layer. Values and weights are interpolated between keys, so a single motion's extremes
+/// are at its keys.
+fn keyframe_positions(world: &World, layer: Entity, frame: u32) -> Option<Vec<Vec<DVec3>>> {
     let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
     if verts.iter().any(|&v| world.get::<Prescribed>(v).is_none_or(|p| p.0 != [true; 3])) {
-        return Vec::new();
+        return None;
     }
     let patch = world.iter_entities().find(|e| e.get::<PatchLayers>().is_some_and(|l| l.entities().contains(&layer)));
-    let Some(motion) = patch.and_then(|p| p.get::<PatchMotion>()) else { return Vec::new() };
+    let Some(motion) = patch.and_then(|p| p.get::<PatchMotion>()) else { return Some(Vec::new()) };
     let acting: Vec<&Motion> = motion.motions.iter().filter(|m| m.layers.contains(&layer)).collect();
     let rest: Vec<DVec3> = verts.iter().map(|&v| world.get::<RestPos>(v).expect("vertex").0).collect();
     let at = |k: u32| pose_at(&acting, &rest, motion.centre, f64::from(k));
-    keyframes_after(&acting, frame).into_iter().map(at).collect()
+    Some(keyframes_after(&acting, frame).into_iter().map(at).collect())
 }
 
 /// A layer's material positions, positions and faces (empty for a layer without faces).

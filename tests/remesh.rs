@@ -627,6 +627,41 @@ fn the_lookahead_refines_where_the_driver_will_compress_before_the_load_gets_the
     assert!(inside > 0.45e-3, "nothing refined before the load: {inside}");
 }
 
+/// Under `lookahead` the term reads the kinematic layers below only: with the dermis squeezed
+/// by 10 % along x (twenty times the epidermis' critical strain) and the base at rest, the first
+/// remesh refines the epidermis across the squeeze without it, and leaves it at its start
+/// mesh's 0.5 mm with it (the compression the layers between take once wrinkled must not
+/// refine a mesh held to the driver's).
+#[test]
+fn the_lookahead_reads_the_kinematic_layers_only() {
+    let longest_across = |options: &str| {
+        let mut sim = pinch_with_remeshed_epidermis(
+            "lookahead_kinematic",
+            &format!(
+                "size_min: 0.1, size_max: 1.0, refine_angle: 0.6, refine_compression: 0.05, \
+                 wavelength: Some((per_wavelength: 8, onset: 0.5{options}))"
+            ),
+        );
+        let dermis = layer(&mut sim, "dermis");
+        let verts = sim.world.get::<LayerVertices>(dermis).unwrap().entities().to_vec();
+        for v in verts {
+            sim.world.get_mut::<Position>(v).unwrap().0.x *= 0.9;
+        }
+        sim.world.resource_mut::<SimClock>().frame = 1;
+        skinsim_systems::remesh::remesh_layers(&mut sim.world);
+        let epidermis = layer(&mut sim, "epidermis");
+        let w = &sim.world;
+        let uv = |v: Entity| w.get::<MaterialPos>(v).unwrap().0;
+        let edges = w.get::<LayerEdges>(epidermis).unwrap().entities().iter();
+        edges.map(|&e| w.get::<EdgeVerts>(e).unwrap().0.map(uv)).map(|[a, b]| (a.x - b.x).abs()).fold(0.0f64, f64::max)
+    };
+    let without = longest_across("");
+    let with = longest_across(", lookahead: true");
+    println!("longest extent across the squeeze: {without:.3e} m without lookahead, {with:.3e} m with it");
+    assert!(without <= 2e-3 / 8.0 * (1.0 + 1e-9), "{without}");
+    assert!(with > 0.45e-3, "{with}");
+}
+
 /// Issue 26 item 2: with `local_solve`, each remesh's changed region is solved to equilibrium
 /// (the rest held) before the frame's solve; the frames still converge with the constraints
 /// held and the layer consistent, and every frame after a changing remesh reports a converged

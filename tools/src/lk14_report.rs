@@ -144,9 +144,7 @@ const CASES: [Case; 4] = [
         uniform: &[(48, 28), (64, 37), (96, 55), (128, 74)],
         start: (48, 28),
         every: 3,
-        // (refined ahead across the compression and held, at lambda_2 / 8, its frame 4 stopped
-        // at the iteration cap and a later one went non-finite)
-        ahead: None,
+        ahead: Some(Ahead { isotropic: false, margins_mm: &[0.0], per_wavelength: &[8, 12] }),
         adaptive: &[(0.1, 1.0, 0.6, 0.05), (0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.01), (0.1, 1.0, 0.2, 0.01)],
         quick: 2,
     },
@@ -161,6 +159,9 @@ const CASES: [Case; 4] = [
         uniform: &[(64, 37), (96, 55), (128, 74)],
         start: (64, 37),
         every: 1,
+        // (refined ahead over the disc and held, lambda_2 / 6, one remesh before the first solve:
+        // the ring wrinkled on the start mesh beyond the disc, and the held-load remesh that
+        // refined it stalled Newton at the iteration cap, then went non-finite)
         ahead: None,
         adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
         quick: 2,
@@ -200,10 +201,12 @@ const CASE_FLAGS: [&str; 4] = ["10", "11", "pinch", "localized"];
 
 /// Adaptive runs of a case whose index is here refine by the wavelength term too
 /// (`PER_WAVELENGTH` elements per kernel wavelength across the compression, or those of the
-/// case's `Ahead`, from half the critical strain) by default. Case 11 and the fig. 6-4 pinch are not: their compression
-/// covers most of the patch, so the term asks for the finest uniform mesh's spacing there, and
-/// it did not pay (src/mesh/remesh/README.md, "The wavelength term on the sweeps").
-const WAVELENGTH_CASES: [usize; 2] = [0, 3];
+/// case's `Ahead`, from half the critical strain) by default. The fig. 6-4 pinch is not: refined
+/// ahead over its disc, the held-load remesh of the ring beyond stalled Newton
+/// (src/mesh/remesh/README.md, "Held remeshes that stall"); on this frame's compression, the
+/// term asked for the finest uniform mesh's spacing over most of the patch and did not pay
+/// ("The wavelength term on the sweeps").
+const WAVELENGTH_CASES: [usize; 3] = [0, 1, 3];
 const PER_WAVELENGTH: u32 = 8;
 
 /// Which cases' adaptive runs refine by the wavelength term.
@@ -265,14 +268,14 @@ pub fn speed_error(
             (Some(a), true) => a
                 .margins_mm
                 .iter()
-                .flat_map(|&m| a.per_wavelength.iter().map(move |&n| (&case.adaptive[0], Some((m, a.isotropic)), n)))
+                .flat_map(|&m| a.per_wavelength.iter().map(move |&n| (&case.adaptive[0], Some((m, a)), n)))
                 .collect(),
             _ => case.adaptive.iter().map(|s| (s, None, PER_WAVELENGTH)).collect(),
         };
         let count = take(runs.len());
         for (&(lo, hi, angle, c), ahead, n) in runs.into_iter().take(count) {
             let lookahead = match ahead {
-                Some((m, isotropic)) => format!(", isotropic: {isotropic}, lookahead: true, margin: {m}, hold: true"),
+                Some((m, a)) => format!(", isotropic: {}, lookahead: true, margin: {m}, hold: true", a.isotropic),
                 None => String::new(),
             };
             let wavelength = if term {
@@ -482,27 +485,50 @@ fn run(
 pub struct HeldRemeshes {
     /// Those that changed the layer's topology.
     pub changed: u32,
-    /// The Newton iterations of their frames (the previous frame converged at the same load, so
-    /// they are the remeshes' alone).
+    /// The Newton iterations of their frames.
     pub iterations: u32,
+    /// The Newton iterations of the last held frame before them, without a remesh: 0 once the
+    /// wrinkles have stopped creeping (`SETTLE_FRAMES`), else what a remesh's frame would take
+    /// anyway.
+    pub baseline: u32,
 }
 
 impl HeldRemeshes {
-    /// The Newton iterations a remesh that changed the mesh added, on average (None: none did).
+    /// The Newton iterations a remesh that changed the mesh added, on average, beyond a held
+    /// frame without one (None: none changed it).
     pub fn per_remesh(&self) -> Option<f64> {
-        (self.changed > 0).then(|| f64::from(self.iterations) / f64::from(self.changed))
+        (self.changed > 0).then(|| f64::from(self.iterations) / f64::from(self.changed) - f64::from(self.baseline))
     }
 }
 
 /// Frames run past the last keyframe, remeshing every frame, to count what a remesh adds.
 const HELD_FRAMES: u32 = 3;
 
+/// Held frames without a remesh before those, at most: until one takes no Newton iteration. Once
+/// the load stops, the wrinkles creep on at the solver's tolerance for a frame or two (the
+/// localized pinch's 9 mm run: 6 and 8 iterations, then 0), which a remesh's frame would count
+/// as its own.
+const SETTLE_FRAMES: u32 = 4;
+
 /// The remeshes of `layer` in `HELD_FRAMES` frames with the load held (the run past its last
-/// keyframe), remeshing every frame.
+/// keyframe), remeshing every frame, after up to `SETTLE_FRAMES` without a remesh.
 fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<dyn std::error::Error>> {
-    let mut q = sim.world.query::<(&skinsim::model::Layer, &mut skinsim::model::RemeshSettings)>();
-    q.iter_mut(&mut sim.world).filter(|(l, _)| l.name == layer).for_each(|(_, mut r)| r.every = 1);
     let mut held = HeldRemeshes::default();
+    let every = |sim: &mut Simulation, every: u32| {
+        let mut q = sim.world.query::<(&skinsim::model::Layer, &mut skinsim::model::RemeshSettings)>();
+        q.iter_mut(&mut sim.world).filter(|(l, _)| l.name == layer).for_each(|(_, mut r)| r.every = every);
+    };
+    every(sim, u32::MAX);
+    for _ in 0..SETTLE_FRAMES {
+        held.baseline = sim.step().patches[0].newton_iterations;
+        if let Some(f) = sim.failure() {
+            return Err(f.into());
+        }
+        if held.baseline == 0 {
+            break;
+        }
+    }
+    every(sim, 1);
     for _ in 0..HELD_FRAMES {
         let s = sim.step();
         if let Some(f) = sim.failure() {
@@ -565,17 +591,19 @@ fn write(
          hide finer differences). Height error: the RMS of the height difference to the reference on the \
          material grid, without its best affine fit (a rigid or affine drift of the sheet), over the reference's \
          RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Iterations per remesh: \
-         after the run, {HELD_FRAMES} frames more with the load held (past the last keyframe) and a remesh every \
-         frame; the mean Newton iterations of those frames whose remesh changed the topology (the previous frame \
-         converged at the same load: what a remesh adds, alone), and how many of them did. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
+         after the run, frames with the load held (past the last keyframe) and no remesh until one takes no \
+         Newton iteration (at most {SETTLE_FRAMES}: the wrinkles creep on at the solver's tolerance for a frame \
+         or two once the load stops), then {HELD_FRAMES} with a remesh every frame; the mean Newton iterations \
+         of those whose remesh changed the topology, less those of the last frame without one (shown after \
+         `without`, 0 once settled), and how many of them did. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
-         strain; their first remesh comes before the first solve): by default those of case 10 and the \
-         localized pinch, `--wavelength-term all` or `off` for every case or none. Those ending in `ahead, held` \
-         (case 10) bound the edges across the compression where the kinematic base will be compressed at its \
+         strain; their first remesh comes before the first solve): by default those of cases 10 and 11 and \
+         the localized pinch, `--wavelength-term all` or `off` for every case or none (without it each case's \
+         settings sweep the angle, remeshed on the frame's compression and curvature). Those ending in `ahead, held` (cases 10 and 11) bound the edges across the compression where the kinematic base will be compressed at its \
          last keyframe, from the first remesh on, and no later remesh changes a face there whose edges meet the \
          bound (`hold`); those ending in `ahead, M mm around, held` (the localized pinch) bound every edge there \
-         and M mm around.\n\n\
+         and M mm around. Under `lookahead` the term reads the kinematic base only, not the dermis.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
          map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\
@@ -584,7 +612,7 @@ fn write(
     let mut csv = String::from(
         "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
          wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
-         iterations_per_remesh_held,held_remeshes_changed,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
+         iterations_per_remesh_held,held_remeshes_changed,held_iterations_without_remesh,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -594,7 +622,7 @@ fn write(
         };
         let (ratio, ratio_energy, ratio_map) = (show(r.time_ratio), show(r.time_ratio_energy), show(r.time_ratio_map));
         let per_remesh = r.held.map_or(String::new(), |h| match h.per_remesh() {
-            Some(n) => format!("{n:.1} ({} of {HELD_FRAMES} changed it)", h.changed),
+            Some(n) => format!("{n:.1} ({} of {HELD_FRAMES} changed it; {} without)", h.changed, h.baseline),
             None => format!("none of {HELD_FRAMES} changed it"),
         });
         let wavelength = if r.wavelength_error.is_nan() {
@@ -622,7 +650,7 @@ fn write(
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{:.4},{},{},{:.6}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{:.4},{},{},{:.6}",
             csv_text(&r.series),
             csv_text(&r.setting),
             r.mean_vertices,
@@ -638,6 +666,7 @@ fn write(
             r.remeshes,
             r.held.and_then(|h| h.per_remesh()).map_or(f64::NAN, |n| n),
             r.held.map_or(String::new(), |h| h.changed.to_string()),
+            r.held.map_or(String::new(), |h| h.baseline.to_string()),
             r.map_error.to_degrees(),
             r.time_ratio_map.map_or(f64::NAN, |t| t.0),
             r.time_ratio_map.is_some_and(|t| t.1),

@@ -195,8 +195,9 @@ pub struct WavelengthSizing {
     /// wrinkles of any direction and phase (where they form later, or beside the compression
     /// that drives them, their direction is not the one the driver shows now).
     pub isotropic: bool,
-    /// Also the compression the kinematic layers below reach at their motions' later keyframes:
-    /// the mesh is refined before the load gets there.
+    /// The compression the kinematic layers below reach now and at their motions' later
+    /// keyframes, and not that of the layers between: the mesh is refined before the load gets
+    /// there, and not again for what the layers between take once wrinkled.
     pub lookahead: bool,
     /// And within this material distance (m) of those faces: the layers between spread the
     /// compression of the driven region around it (a pinched disc's ring of wrinkles).

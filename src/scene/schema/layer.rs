@@ -101,7 +101,8 @@ pub struct RefineWavelengthSpec {
     #[serde(default)]
     pub isotropic: bool,
     /// Also where the kinematic layers below will be compressed at their drivers' later
-    /// keyframes (default false: the compression of this frame only).
+    /// keyframes, and from theirs only, not the layers' between (default false: the compression
+    /// every layer below has at this frame).
     #[serde(default)]
     pub lookahead: bool,
     /// And within this distance (length units) of those faces (default 0).
