@@ -89,10 +89,8 @@ const HOLD_SLACK: f64 = 1.5;
 /// The wavelength term of each face of `layer` (issue 26 item 1; `sizing::add_wavelength_terms`):
 /// lambda(x) the wavelength of the nearest kernel holding the layer (twice its radius, LK14
 /// 4.1), the strain that of every layer below it (`coupling::kernels::layers_below`); under
-/// `lookahead`, of the kinematic ones only, now and at their later keyframes: the mesh is then
-/// the driver's, and the compression the layers between take once the wrinkles form (beyond
-/// the ring of a pinch) does not refine it again after the fact (the `margin` stands for their
-/// spread; src/mesh/remesh/README.md, "The frame-9 refinement is the wavelength term's").
+/// `lookahead` of the kinematic ones only, now and at their later keyframes, so that what the
+/// layers between take once wrinkled does not refine the driver's mesh again (design note).
 fn wavelength_terms(
     world: &World,
     layer: Entity,
@@ -109,10 +107,10 @@ fn wavelength_terms(
     let frame = world.resource::<SimClock>().frame;
     let mut terms = vec![DMat2::ZERO; faces.len()];
     for below in layers_below(&couplings, layer) {
-        let later = match (w.lookahead, keyframe_positions(world, below, frame)) {
-            (false, _) => Vec::new(),
-            (true, Some(later)) => later,
-            (true, None) => continue,
+        let later = match w.lookahead.then(|| keyframe_positions(world, below, frame)) {
+            None => Vec::new(),
+            Some(Some(later)) => later,
+            Some(None) => continue,
         };
         let (uv, x, lower) = layer_arrays(world, below);
         for x in std::iter::once(&x).chain(&later) {
