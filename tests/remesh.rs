@@ -628,10 +628,10 @@ fn the_lookahead_refines_where_the_driver_will_compress_before_the_load_gets_the
 }
 
 /// Under `lookahead` the term reads the kinematic layers below only: with the dermis squeezed
-/// by 10 % along x (twenty times the epidermis' critical strain) and the base at rest, the first
-/// remesh refines the epidermis across the squeeze without it, and leaves it at its start
-/// mesh's 0.5 mm with it (the compression the layers between take once wrinkled must not
-/// refine a mesh held to the driver's).
+/// by 10 % along x (far past the epidermis' critical strain, 5.1e-4) and the base at rest, the
+/// first remesh refines the whole epidermis across the squeeze without it, and with it leaves
+/// the start mesh's 0.5 mm beyond the disc the pinch will compress (the compression the layers
+/// between take once wrinkled must not refine a mesh held to the driver's).
 #[test]
 fn the_lookahead_reads_the_kinematic_layers_only() {
     let longest_across = |options: &str| {
