@@ -11,7 +11,9 @@ use bevy_ecs::prelude::*;
 use glam::{DMat2, DVec2, DVec3};
 use skinsim::coupling::kernels::layers_below;
 use skinsim::mesh::imperfection::remesh_under;
-use skinsim::mesh::remesh::sizing::{add_wavelength_terms, face_centroids, grow_terms, held_faces, WavelengthSizing};
+use skinsim::mesh::remesh::sizing::{
+    add_wavelength_terms, face_centroids, grow_terms, held_faces, WavelengthSizing, HOLD_SLACK,
+};
 use skinsim::mesh::remesh::RemeshVertex;
 use skinsim::model::*;
 
@@ -80,11 +82,6 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
         crate::remesh_write::apply(world, layer, settings, &verts, (&old_faces, &tris), &out);
     }
 }
-
-/// How far past the wavelength bound a held face's edges may be: at the edge of the term's region
-/// a vertex's metric is the mean of its faces', with and without the term, so the refinement
-/// leaves edges there up to about sqrt 2 of the bound.
-const HOLD_SLACK: f64 = 1.5;
 
 /// The wavelength term of each face of `layer` (issue 26 item 1; `sizing::add_wavelength_terms`):
 /// lambda(x) the wavelength of the nearest kernel holding the layer (twice its radius, LK14

@@ -261,6 +261,11 @@ pub fn grow_terms(terms: &[DMat2], centroids: &[DVec2], margin: f64) -> Vec<DMat
         .collect()
 }
 
+/// How far past the wavelength bound a held face's edges may be (`held_faces`' slack): at the
+/// edge of the term's region a vertex's metric is the mean of its faces', with and without the
+/// term, so the refinement leaves edges there up to about sqrt 2 of the bound.
+pub const HOLD_SLACK: f64 = 1.5;
+
 /// The faces a remesh leaves alone under `WavelengthSizing::hold`: those with a wavelength term
 /// (`terms`, one per face) whose every edge is at most `slack` long in it.
 pub fn held_faces(terms: &[DMat2], uv: &[DVec2], faces: &[[u32; 3]], slack: f64) -> Vec<bool> {
