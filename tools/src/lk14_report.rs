@@ -160,8 +160,8 @@ const CASES: [Case; 4] = [
         start: (64, 37),
         every: 1,
         // (refined ahead over the disc and held, lambda_2 / 6, one remesh before the first solve:
-        // the ring wrinkled on the start mesh beyond the disc, and the held-load remesh that
-        // refined it stalled Newton at the iteration cap, then went non-finite)
+        // the wrinkles formed on the start mesh at the disc's rim, and the held-load remesh that
+        // refined them, releasing the held faces there, took 25 Newton iterations)
         ahead: None,
         adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
         quick: 2,

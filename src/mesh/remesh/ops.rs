@@ -27,6 +27,8 @@ pub struct RemeshStats {
     pub splits: u32,
     pub flips: u32,
     pub collapses: u32,
+    /// Held faces released because the metric wants one of their edges split.
+    pub released: u32,
 }
 
 pub(super) struct WorkMesh<'a> {
@@ -108,6 +110,16 @@ impl<'a> WorkMesh<'a> {
                 [d0, d1] => cross(*d0, *d1).abs() > 1e-9 * d0.length() * d1.length() || d0.dot(*d1) > 0.0,
                 _ => true,
             };
+        }
+        // A held face stays held only while the metric is content with its edges: an edge it
+        // wants split cannot be while a held face holds it, and the free faces beside it, split
+        // toward it, then cut slivers down to degenerate ones (test
+        // `a_held_face_the_metric_wants_split_is_released`).
+        for (f, t) in faces.iter().enumerate() {
+            if mesh.f_held[f] && (0..3).any(|k| mesh.size(t[k], t[(k + 1) % 3]) > 1.0) {
+                mesh.f_held[f] = false;
+                mesh.stats.released += 1;
+            }
         }
         mesh
     }
@@ -246,7 +258,11 @@ impl<'a> WorkMesh<'a> {
             bad.sort_by(|x, y| y.0.total_cmp(&x.0).then((x.1, x.2).cmp(&(y.1, y.2))));
             for (_, a, b) in bad {
                 let (ef, count) = self.edge_faces(a, b);
-                if count == 0 || self.size(a, b) <= 1.0 || ef[..count].iter().any(|&(f, _)| self.f_held[f as usize]) {
+                // (a split halves its faces: none is made below the area every operation keeps)
+                let blocked = |&(f, _): &(u32, u32)| {
+                    self.f_held[f as usize] || self.area(self.faces[f as usize]) <= 2.0 * self.area_min()
+                };
+                if count == 0 || self.size(a, b) <= 1.0 || ef[..count].iter().any(blocked) {
                     continue;
                 }
                 let m = self.split(a, b);

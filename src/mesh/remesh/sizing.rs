@@ -205,7 +205,8 @@ pub struct WavelengthSizing {
     /// At every remesh after the layer's first, leave alone the faces under the term whose edges
     /// already meet its bound (`held_faces`): refined before they wrinkle, they are not
     /// remeshed again once they have (issue 26 items 2 and 3; a remesh of a wrinkled region
-    /// lets its pattern relax, which costs Newton iterations at every remesh).
+    /// lets its pattern relax, which costs Newton iterations at every remesh). A held face with
+    /// an edge the whole sizing field wants split is released (`RemeshStats::released`).
     pub hold: bool,
 }
 
