@@ -112,6 +112,8 @@ struct Ahead {
     /// Grown this many mm around where the base will compress (`margin`).
     margins_mm: &'static [f64],
     per_wavelength: &'static [u32],
+    /// Remeshed every this many frames (the case's `every` is that of the runs without).
+    every: u32,
 }
 
 const CASES: [Case; 4] = [
@@ -130,7 +132,7 @@ const CASES: [Case; 4] = [
         // the term on this frame's compression at lambda / 8 and the four angles 0.4-0.2, one
         // run each: map ratios 0.43-0.52 against 0.72-1.89, shape 0.54-0.65 against 1.01-3.45
         // (src/mesh/remesh/README.md, "Cases 10 and 11 read at the last frame").
-        ahead: Some(Ahead { isotropic: false, margins_mm: &[0.0], per_wavelength: &[6, 8, 12] }),
+        ahead: Some(Ahead { isotropic: false, margins_mm: &[0.0], per_wavelength: &[6, 8, 12], every: 3 }),
         adaptive: &[(0.25, 3.0, 0.4, 0.05), (0.25, 3.0, 0.3, 0.03), (0.25, 3.0, 0.2, 0.02), (0.25, 3.0, 0.2, 0.01)],
         quick: 2,
     },
@@ -144,7 +146,7 @@ const CASES: [Case; 4] = [
         uniform: &[(48, 28), (64, 37), (96, 55), (128, 74)],
         start: (48, 28),
         every: 3,
-        ahead: Some(Ahead { isotropic: false, margins_mm: &[0.0], per_wavelength: &[8, 12] }),
+        ahead: Some(Ahead { isotropic: false, margins_mm: &[0.0], per_wavelength: &[8, 12], every: 3 }),
         adaptive: &[(0.1, 1.0, 0.6, 0.05), (0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.01), (0.1, 1.0, 0.2, 0.01)],
         quick: 2,
     },
@@ -159,10 +161,10 @@ const CASES: [Case; 4] = [
         uniform: &[(64, 37), (96, 55), (128, 74)],
         start: (64, 37),
         every: 1,
-        // (refined ahead over the disc and held, lambda_2 / 6, one remesh before the first solve:
-        // the wrinkles formed on the start mesh at the disc's rim, and the held-load remesh that
-        // refined them, releasing the held faces there, took 25 Newton iterations)
-        ahead: None,
+        // Refined ahead over the disc and 2 mm around, held, one remesh before the first solve:
+        // with no margin the wrinkles formed on the start mesh at the disc's rim, and the
+        // held-load remesh that refined them took 25 Newton iterations.
+        ahead: Some(Ahead { isotropic: true, margins_mm: &[2.0], per_wavelength: &[6, 8], every: 10 }),
         adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
         quick: 2,
     },
@@ -187,7 +189,7 @@ const CASES: [Case; 4] = [
         // around where the base will compress; later remeshes of the wrinkled ring moved its
         // phase off the reference's (src/mesh/remesh/README.md, "Refining ahead of the load").
         every: 8,
-        ahead: Some(Ahead { isotropic: true, margins_mm: &[6.0, 9.0], per_wavelength: &[PER_WAVELENGTH] }),
+        ahead: Some(Ahead { isotropic: true, margins_mm: &[6.0, 9.0], per_wavelength: &[PER_WAVELENGTH], every: 8 }),
         adaptive: &[(0.1, 1.0, 0.6, 0.05)],
         // (its runs are the sweep's largest: one of each keeps the quick test short)
         quick: 1,
@@ -201,12 +203,8 @@ const CASE_FLAGS: [&str; 4] = ["10", "11", "pinch", "localized"];
 
 /// Adaptive runs of a case whose index is here refine by the wavelength term too
 /// (`PER_WAVELENGTH` elements per kernel wavelength across the compression, or those of the
-/// case's `Ahead`, from half the critical strain) by default. The fig. 6-4 pinch is not: refined
-/// ahead over its disc, the held-load remesh of the ring beyond stalled Newton
-/// (src/mesh/remesh/README.md, "Held remeshes that stall"); on this frame's compression, the
-/// term asked for the finest uniform mesh's spacing over most of the patch and did not pay
-/// ("The wavelength term on the sweeps").
-const WAVELENGTH_CASES: [usize; 3] = [0, 1, 3];
+/// case's `Ahead`, from half the critical strain) by default.
+const WAVELENGTH_CASES: [usize; 4] = [0, 1, 2, 3];
 const PER_WAVELENGTH: u32 = 8;
 
 /// Which cases' adaptive runs refine by the wavelength term.
@@ -283,7 +281,7 @@ pub fn speed_error(
             } else {
                 String::new()
             };
-            let every = case.every;
+            let every = ahead.map_or(case.every, |(_, a)| a.every);
             let remesh = format!(
                 ", remesh: Some((size_min: {lo}, size_max: {hi}, refine_angle: {angle}, refine_compression: {c}, \
                  every: {every}{wavelength}))"
@@ -598,12 +596,13 @@ fn write(
          `without`, 0 once settled), and how many of them did. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
-         strain; their first remesh comes before the first solve): by default those of cases 10 and 11 and \
-         the localized pinch, `--wavelength-term all` or `off` for every case or none (without it each case's \
+         strain; their first remesh comes before the first solve): by default those of every case, \
+         `--wavelength-term all` or `off` for every case or none (without it each case's \
          settings sweep the angle, remeshed on the frame's compression and curvature). Those ending in `ahead, held` (cases 10 and 11) bound the edges across the compression where the kinematic base will be compressed at its \
          last keyframe, from the first remesh on, and no later remesh changes a face there whose edges meet the \
-         bound (`hold`); those ending in `ahead, M mm around, held` (the localized pinch) bound every edge there \
-         and M mm around. Under `lookahead` the term reads the kinematic base only, not the dermis.\n\n\
+         bound (`hold`); those ending in `ahead, M mm around, held` (the two pinches) bound every edge there \
+         and M mm around. A held face is released where a free face meets it across an edge the sizing field \
+         wants split. Under `lookahead` the term reads the kinematic base only, not the dermis.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
          map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
          wavelength error | energy error | time ratio (energy) |\n\

@@ -103,8 +103,8 @@ enum Command {
         #[arg(long, value_enum, value_delimiter = ',')]
         cases: Vec<Lk14Case>,
         /// LK14 sweeps: which cases' adaptive runs refine by the wavelength term (issue 26):
-        /// default, case 10 and the localized pinch (where it was measured to pay); all; off
-        /// (curvature and compression only, as before).
+        /// default, those where it was measured to pay (now all four); all; off (curvature and
+        /// compression only, as before).
         #[arg(long, value_enum, default_value = "default")]
         wavelength_term: WavelengthTermArg,
     },

@@ -27,7 +27,7 @@ pub struct RemeshStats {
     pub splits: u32,
     pub flips: u32,
     pub collapses: u32,
-    /// Held faces released because the metric wants one of their edges split.
+    /// Held faces released (`WorkMesh::release_held`).
     pub released: u32,
 }
 
@@ -97,7 +97,8 @@ impl<'a> WorkMesh<'a> {
         };
         // Boundary edges per vertex: a corner is where the boundary turns or branches.
         let mut along: Vec<Vec<DVec2>> = vec![Vec::new(); n];
-        for e in crate::mesh::edges(faces).iter().filter(|e| !e.is_interior()) {
+        let edges = crate::mesh::edges(faces);
+        for e in edges.iter().filter(|e| !e.is_interior()) {
             let [a, b] = e.v.map(|v| v as usize);
             let d = mesh.verts[b].uv - mesh.verts[a].uv;
             along[a].push(d);
@@ -111,17 +112,31 @@ impl<'a> WorkMesh<'a> {
                 _ => true,
             };
         }
-        // A held face stays held only while the metric is content with its edges: an edge it
-        // wants split cannot be while a held face holds it, and the free faces beside it, split
-        // toward it, then cut slivers down to degenerate ones (test
-        // `a_held_face_the_metric_wants_split_is_released`).
-        for (f, t) in faces.iter().enumerate() {
-            if mesh.f_held[f] && (0..3).any(|k| mesh.size(t[k], t[(k + 1) % 3]) > 1.0) {
-                mesh.f_held[f] = false;
-                mesh.stats.released += 1;
+        mesh.release_held(&edges);
+        mesh
+    }
+
+    /// Releases the held faces a free face meets across an edge the metric wants split, and so
+    /// on from those: such an edge cannot be split while a held face holds it, and the free
+    /// faces beside it, split toward it, cut slivers down to degenerate ones (test
+    /// `a_held_face_the_metric_wants_split_is_released`). A held region with no free face across
+    /// such an edge (a whole strip held) stays held however its edges compare with the metric.
+    fn release_held(&mut self, edges: &[crate::mesh::EdgeInfo]) {
+        let mut across: Vec<Vec<u32>> = vec![Vec::new(); self.faces.len()];
+        for e in edges.iter().filter(|e| e.is_interior() && self.size(e.v[0], e.v[1]) > 1.0) {
+            across[e.faces[0] as usize].push(e.faces[1]);
+            across[e.faces[1] as usize].push(e.faces[0]);
+        }
+        let mut free: Vec<u32> = (0..self.faces.len() as u32).filter(|&f| !self.f_held[f as usize]).collect();
+        while let Some(f) = free.pop() {
+            for &g in &across[f as usize] {
+                if self.f_held[g as usize] {
+                    self.f_held[g as usize] = false;
+                    self.stats.released += 1;
+                    free.push(g);
+                }
             }
         }
-        mesh
     }
 
     fn edge_faces(&self, a: u32, b: u32) -> EdgeFaces {

@@ -379,7 +379,8 @@ fn a_held_face_the_metric_wants_split_is_released() {
     // A flat sheet of 0.125 cells asked for edges of 0.04 everywhere, its left half held. A held
     // edge cannot be split, and the free faces beside it, split toward it, cut slivers: before
     // the release, the worst face came out at 1.6e-5 with the split's area bound, 7e-15 without
-    // (on the fig. 6-4 pinch refined ahead, degenerate faces that stalled Newton).
+    // (on the fig. 6-4 pinch refined ahead, degenerate faces that stalled Newton). Released from
+    // the free half across its too-long edges, the whole held half is.
     for pattern in [GridPattern::Equilateral, GridPattern::RightTriangle] {
         let (v, f) = sheet(8, pattern, flat);
         let centre = |t: &[u32; 3]| t.iter().map(|&i| v[i as usize].uv).sum::<DVec2>() / 3.0;
@@ -393,5 +394,10 @@ fn a_held_face_the_metric_wants_split_is_released() {
         assert_eq!(out.stats.released as usize, held.iter().filter(|h| **h).count());
         // (measured 0.74 and 0.89)
         assert!(worst_quality(&out) > 0.5, "{pattern:?}: a face of quality {}", worst_quality(&out));
+        // Held whole, the sheet has no free face to cut slivers against it: nothing is released
+        // and nothing changes.
+        let all = remesh_sized(&v, &f, &extra, &vec![true; f.len()], &params(0.005, 0.5));
+        assert_eq!((all.stats.released, all.faces.len()), (0, f.len()), "{pattern:?}: {:?}", all.stats);
+        assert!(!all.changed(), "{pattern:?}: {:?}", all.stats);
     }
 }
