@@ -726,7 +726,10 @@ fn held_faces_survive_a_later_remesh() {
         let before = triples(&sim.world);
         let verts = sim.world.get::<LayerVertices>(epidermis).unwrap().entities().to_vec();
         let window = |r: f64| {
-            let step = |t: f64| t.clamp(0.0, 1.0) * t.clamp(0.0, 1.0) * (3.0 - 2.0 * t.clamp(0.0, 1.0));
+            let step = |t: f64| {
+                let t = t.clamp(0.0, 1.0);
+                t * t * (3.0 - 2.0 * t)
+            };
             1.0 - step((r - 4.5e-3) / 1e-3) + step((r - 7e-3) / 1e-3)
         };
         for v in verts {

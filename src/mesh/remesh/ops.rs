@@ -60,6 +60,14 @@ fn cross(a: DVec2, b: DVec2) -> f64 {
     a.perp_dot(b)
 }
 
+/// A triangle's shape quality in material space: 12 sqrt 3 (signed) area / perimeter^2, 1 for an
+/// equilateral triangle, 0 for a degenerate one.
+pub(super) fn quality(u: [DVec2; 3]) -> f64 {
+    let area = 0.5 * cross(u[1] - u[0], u[2] - u[0]);
+    let perimeter = (u[1] - u[0]).length() + (u[2] - u[1]).length() + (u[0] - u[2]).length();
+    12.0 * 3f64.sqrt() * area / (perimeter * perimeter)
+}
+
 impl<'a> WorkMesh<'a> {
     pub(super) fn new(
         vertices: &[RemeshVertex],
@@ -400,9 +408,7 @@ impl<'a> WorkMesh<'a> {
             let t = self.faces[f as usize];
             let n = t.map(|u| if u == v { w } else { u });
             let area = self.area(n);
-            let u = n.map(|i| self.verts[i as usize].uv);
-            let perimeter = (u[1] - u[0]).length() + (u[2] - u[1]).length() + (u[0] - u[2]).length();
-            let aspect = 12.0 * 3f64.sqrt() * area / (perimeter * perimeter);
+            let aspect = quality(n.map(|i| self.verts[i as usize].uv));
             if area <= min || aspect < aspect_min || self.normal(n).dot(self.normal(t)) <= 0.0 {
                 return false;
             }

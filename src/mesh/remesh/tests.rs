@@ -360,18 +360,10 @@ fn a_remesh_leaves_held_faces_as_they_were() {
     assert_eq!(out.stats.released, 0);
 }
 
-/// The worst face of a mesh: 12 sqrt 3 area / perimeter^2 in material space (1 for an
-/// equilateral triangle, 0 for a degenerate one).
+/// The worst face of a mesh (`ops::quality`: 1 for an equilateral triangle, 0 for a degenerate
+/// one).
 fn worst_quality(out: &Remeshed) -> f64 {
-    out.faces
-        .iter()
-        .map(|f| {
-            let u = f.map(|i| out.vertices[i as usize].uv);
-            let area = 0.5 * (u[1] - u[0]).perp_dot(u[2] - u[0]);
-            let perimeter: f64 = (0..3).map(|k| (u[(k + 1) % 3] - u[k]).length()).sum();
-            12.0 * 3f64.sqrt() * area / (perimeter * perimeter)
-        })
-        .fold(f64::INFINITY, f64::min)
+    out.faces.iter().map(|f| ops::quality(f.map(|i| out.vertices[i as usize].uv))).fold(f64::INFINITY, f64::min)
 }
 
 #[test]
