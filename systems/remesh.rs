@@ -59,7 +59,7 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
         .collect();
     let tris: Vec<[Entity; 3]> = old_faces.iter().map(|&f| world.get::<FaceVerts>(f).expect("face").0).collect();
     let faces: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| index[&v])).collect();
-    let imperfection = world.get::<LayerImperfection>(layer).map(|i| i.0);
+    let imperfection = world.get::<LayerImperfection>(layer).map(|i| i.0.clone());
     let extra = match settings.wavelength {
         Some(w) => wavelength_terms(world, layer, kernels, (&input, &faces), &w),
         None => Vec::new(),

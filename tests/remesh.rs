@@ -414,7 +414,7 @@ fn a_smooth_perturbation_is_the_same_on_every_mesh() {
     // A remesh gives its new vertices the field at their own material point.
     let mut sim = Simulation::new(&smooth("cells: (24, 14), pattern: Equilateral, z: 0.5"));
     let dermis = layer(&mut sim, "dermis");
-    let imperfection = sim.world.get::<LayerImperfection>(dermis).expect("kept on a remeshed layer").0;
+    let imperfection = sim.world.get::<LayerImperfection>(dermis).expect("kept on a remeshed layer").0.clone();
     let before: HashSet<Entity> = sim.world.get::<LayerVertices>(dermis).unwrap().entities().iter().copied().collect();
     for _ in 0..4 {
         sim.step();

@@ -343,6 +343,29 @@ fn a_perturbation_cell_must_be_positive() {
     }
 }
 
+/// Waves add to the smooth field: they need a cell, a positive wavelength, a non-negative
+/// amplitude and a material axis.
+#[test]
+fn perturbation_waves_are_checked() {
+    let with = |rest: &str| {
+        GOOD.replace(
+            "name: \"p\",",
+            &format!("name: \"p\", solver: (perturbation: Some((amplitude: 0.01, seed: 1{rest}))),"),
+        )
+    };
+    let wave = |w: &str| with(&format!(", cell: Some(0.5), waves: [(wavelength: 2.0, amplitude: 0.001), {w}]"));
+    load_str(&wave("(wavelength: 1.0, amplitude: 0.0, axis: Y)"), Path::new("s.ron")).unwrap();
+    for (w, field, says) in [
+        ("(wavelength: 0.0, amplitude: 0.001)", "waves[1].wavelength", "> 0"),
+        ("(wavelength: 1.0, amplitude: -0.001)", "waves[1].amplitude", ">= 0"),
+        ("(wavelength: 1.0, amplitude: 0.001, axis: Z)", "waves[1].axis", "X or Y"),
+    ] {
+        mentions(&err(&wave(w)), &[&format!("solver.perturbation.{field}"), says]);
+    }
+    let no_cell = with(", waves: [(wavelength: 2.0, amplitude: 0.001)]");
+    mentions(&err(&no_cell), &["solver.perturbation.waves[0]", "cell"]);
+}
+
 #[test]
 fn quadratic_bending_needs_a_flat_rest() {
     let quadratic = GOOD.replace("bending: (model: Tan)", "bending: (model: Tan, element: Quadratic)");

@@ -1,6 +1,7 @@
 //! A smooth geometric imperfection: a normal offset of amplitude x Perlin noise over material
-//! space (the `cell` form of a scene's perturbation). It depends on the material point only, so
-//! every mesh of a layer, and every vertex a remesh creates, carries the same imperfection.
+//! space (the `cell` form of a scene's perturbation), plus any sinusoids (`waves`). It depends
+//! on the material point only, so every mesh of a layer, and every vertex a remesh creates,
+//! carries the same imperfection.
 
 use glam::{DMat2, DVec2, DVec3};
 use noise::NoiseFn;
@@ -8,23 +9,40 @@ use noise::NoiseFn;
 use super::remesh::{remesh_sized, RemeshParams, RemeshVertex, Remeshed};
 use super::shading::vertex_normals;
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Imperfection {
-    /// Largest offset (m).
+    /// Largest offset of the noise (m).
     pub amplitude: f64,
     /// Perlin cell (m).
     pub cell: f64,
+    pub waves: Vec<Wave>,
     perlin: noise::Perlin,
+}
+
+/// amplitude x sin(2 pi u / wavelength), u the material coordinate `axis` (0: x, 1: y); m.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Wave {
+    pub wavelength: f64,
+    pub amplitude: f64,
+    pub axis: usize,
 }
 
 impl Imperfection {
     pub fn new(amplitude: f64, cell: f64, seed: u64) -> Self {
-        Self { amplitude, cell, perlin: noise::Perlin::new((seed ^ (seed >> 32)) as u32) }
+        Self { amplitude, cell, waves: Vec::new(), perlin: noise::Perlin::new((seed ^ (seed >> 32)) as u32) }
     }
 
-    /// The offset along the normal at a material point, in [-amplitude, amplitude].
+    pub fn with_waves(mut self, waves: Vec<Wave>) -> Self {
+        self.waves = waves;
+        self
+    }
+
+    /// The offset along the normal at a material point: the noise, in [-amplitude, amplitude],
+    /// plus the waves.
     pub fn at(&self, uv: DVec2) -> f64 {
-        self.amplitude * self.perlin.get((uv / self.cell).to_array()).clamp(-1.0, 1.0)
+        let noise = self.amplitude * self.perlin.get((uv / self.cell).to_array()).clamp(-1.0, 1.0);
+        let wave = |w: &Wave| w.amplitude * (std::f64::consts::TAU * uv[w.axis] / w.wavelength).sin();
+        noise + self.waves.iter().map(wave).sum::<f64>()
     }
 
     /// Adds (`sign` 1) or removes (-1) the offsets of the vertices `which` selects, along the
@@ -101,5 +119,24 @@ mod tests {
         // (removal uses the perturbed surface's normals: exact to first order in the amplitude)
         let error = rest.iter().zip(&flat).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
         assert!(error < 1e-3 * 1e-3, "{error}"); // amplitude^2 over a unit triangle (measured 1.1e-7)
+    }
+
+    #[test]
+    fn waves_add_sinusoids_along_their_axis() {
+        let noise = Imperfection::new(1e-4, 0.5, 7);
+        let waves = vec![
+            Wave { wavelength: 0.8, amplitude: 1e-3, axis: 0 },
+            Wave { wavelength: 0.2, amplitude: 5e-4, axis: 1 },
+        ];
+        let imp = noise.clone().with_waves(waves);
+        for uv in [DVec2::new(0.2, 0.05), DVec2::new(0.37, 0.9), DVec2::new(1.1, 0.0)] {
+            let expected = noise.at(uv)
+                + 1e-3 * (std::f64::consts::TAU * uv.x / 0.8).sin()
+                + 5e-4 * (std::f64::consts::TAU * uv.y / 0.2).sin();
+            assert!((imp.at(uv) - expected).abs() < 1e-18, "{uv}");
+        }
+        // A crest of the first wave a quarter wavelength from the origin, and its node at half.
+        let at = |x: f64| imp.at(DVec2::new(x, 0.0)) - noise.at(DVec2::new(x, 0.0));
+        assert!((at(0.2) - 1e-3).abs() < 1e-15 && at(0.4).abs() < 1e-15);
     }
 }

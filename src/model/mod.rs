@@ -346,7 +346,7 @@ impl LayerPrestrain {
 
 /// A remeshed shell's smooth imperfection (scene perturbation with a `cell`): the vertices a
 /// remesh creates get it at their own material point, not interpolated from their parents'.
-#[derive(Component, Clone, Copy, Debug)]
+#[derive(Component, Clone, Debug)]
 pub struct LayerImperfection(pub crate::mesh::imperfection::Imperfection);
 
 /// A per-element factor on the layer's Young's modulus (randomized properties, H15 6.2);

@@ -243,7 +243,7 @@ impl Builder {
             return Err(self.err(format!("{at}.solver.max_iterations"), "must be at least 1"));
         }
         let solver = s.settings();
-        let mut perturbation = s.perturbation;
+        let mut perturbation = s.perturbation.clone();
         if let Some(pert) = &mut perturbation {
             if !(pert.amplitude >= 0.0 && pert.amplitude.is_finite()) {
                 return Err(self.err(format!("{at}.solver.perturbation.amplitude"), "must be >= 0"));
@@ -256,6 +256,25 @@ impl Builder {
                     return Err(self.err(format!("{at}.solver.perturbation.cell"), message));
                 }
                 *cell *= len;
+            }
+            for (i, w) in pert.waves.iter_mut().enumerate() {
+                let field = |f: &str| format!("{at}.solver.perturbation.waves[{i}].{f}");
+                if pert.cell.is_none() {
+                    return Err(
+                        self.err(field("wavelength"), "waves add to the smooth field: give the perturbation a `cell`")
+                    );
+                }
+                if !(w.wavelength * len >= MIN_CELL && w.wavelength * len <= MAX_CELL) {
+                    let message = format!("must be > 0, from {MIN_CELL:e} to {MAX_CELL:e} m (got {})", w.wavelength);
+                    return Err(self.err(field("wavelength"), message));
+                }
+                if !(w.amplitude >= 0.0 && w.amplitude.is_finite()) {
+                    return Err(self.err(field("amplitude"), "must be >= 0"));
+                }
+                if w.axis == Axis::Z {
+                    return Err(self.err(field("axis"), "must be X or Y (a material axis)"));
+                }
+                (w.wavelength, w.amplitude) = (w.wavelength * len, w.amplitude * len);
             }
         }
         let offset = self.placement(&format!("{at}.offset"), p.offset, len)?;

@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use super::built::{BuiltDriver, BuiltLayer, BuiltPatch, LayerMesh};
 use super::schema::Perturbation;
 use crate::mesh;
-use crate::mesh::imperfection::Imperfection;
+use crate::mesh::imperfection::{Imperfection, Wave};
 use crate::model::{volume_masses, LayerKind, ShellRest};
 use crate::physics::tet::TetRest;
 
@@ -39,7 +39,7 @@ pub(super) fn prescribed(p: &BuiltPatch) -> Vec<Vec<[bool; 3]>> {
 
 /// The layers as spawned: the shells' rest shapes with the patch's perturbation.
 pub(super) fn final_layers(p: &BuiltPatch, fixed: &[Vec<[bool; 3]>]) -> Vec<BuiltLayer> {
-    let mut rng = p.perturbation.map(|q| (q, rand_pcg::Pcg64::seed_from_u64(q.seed)));
+    let mut rng = p.perturbation.as_ref().map(|q| (q, rand_pcg::Pcg64::seed_from_u64(q.seed)));
     let mut layers = p.layers.clone();
     for (li, l) in layers.iter_mut().enumerate() {
         if let (Some((q, rng)), LayerMesh::Surface(m), LayerKind::Shell) = (rng.as_mut(), &mut l.mesh, l.kind) {
@@ -123,13 +123,18 @@ pub(super) fn lumped_mass(l: &BuiltLayer) -> Vec<f64> {
     }
 }
 
+/// The perturbation's waves as the imperfection takes them (SI lengths already).
+pub(super) fn waves(q: &Perturbation) -> Vec<Wave> {
+    q.waves.iter().map(|w| Wave { wavelength: w.wavelength, amplitude: w.amplitude, axis: w.axis.index() }).collect()
+}
+
 /// A geometric imperfection: free shell vertices moved along their rest normal by a seeded
 /// uniform amount in [-a, a] (or, with a `cell`, by the smooth field of `Imperfection`), in the
 /// rest shape itself, so the structure keeps it in equilibrium
 /// (a perturbation of the initial positions alone is solved away at the first frame).
 fn perturb(m: &mut mesh::SurfaceMesh, fixed: &[[bool; 3]], q: &Perturbation, rng: &mut rand_pcg::Pcg64) {
     if let Some(cell) = q.cell {
-        let smooth = Imperfection::new(q.amplitude, cell, q.seed);
+        let smooth = Imperfection::new(q.amplitude, cell, q.seed).with_waves(waves(q));
         return smooth.apply(1.0, &mut m.rest, &m.uv, &m.faces, fixed, |_| true);
     }
     let normal = mesh::shading::vertex_normals(&m.rest, &m.faces);

@@ -84,9 +84,10 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32, role: Role) -> (En
             l.shared.iter().map(|s| s.map(|(ol, ov)| layer_vertices[ol][ov as usize])).collect();
         let (layer, verts) = spawn_layer(world, patch, &l, li as u32, &fixed[li], &mass[li], &owners);
         // A remesh gives its new vertices the same smooth imperfection.
-        if let (Some(q), Some(_)) = (p.perturbation, l.remesh) {
+        if let (Some(q), Some(_)) = (&p.perturbation, l.remesh) {
             if let Some(cell) = q.cell {
-                world.entity_mut(layer).insert(LayerImperfection(Imperfection::new(q.amplitude, cell, q.seed)));
+                let imperfection = Imperfection::new(q.amplitude, cell, q.seed).with_waves(super::geometry::waves(q));
+                world.entity_mut(layer).insert(LayerImperfection(imperfection));
             }
         }
         all_rest.extend_from_slice(l.mesh.rest());

@@ -87,6 +87,10 @@ struct Case {
     /// The imperfection's Perlin cell (mm): half the wrinkle wavelength, or the whole one where
     /// that made the uniform meshes agree on the wrinkles' phase (the localized case).
     cell_mm: f64,
+    /// Waves added to the imperfection (wavelength, amplitude; mm) along x, and then the noise's
+    /// amplitude (mm; None: the scene's).
+    waves: &'static [(f64, f64)],
+    noise_mm: Option<f64>,
     /// Uniform meshes, coarsest first: (cells x, cells y).
     uniform: &'static [(u32, u32)],
     /// Adaptive: the starting cells and (size_min, size_max in mm, refine_angle, and
@@ -124,6 +128,8 @@ const CASES: [Case; 4] = [
         mesh: "cells: (128, 18), pattern: Equilateral, z: 0.01875",
         lambda_mm: Some(6.0),
         cell_mm: 3.0,
+        waves: &[],
+        noise_mm: None,
         uniform: &[(64, 9), (96, 13), (128, 18), (192, 27), (256, 36), (384, 54), (512, 72)],
         start: (64, 9),
         every: 3,
@@ -143,6 +149,13 @@ const CASES: [Case; 4] = [
         mesh: "cells: (96, 55), pattern: Equilateral, z: 1.0125",
         lambda_mm: Some(2.0),
         cell_mm: 1.0,
+        // Sinusoids along the compression at lambda_1 and lambda_2, which set both wrinkle modes'
+        // phase and sign, and a quarter of the noise: with the noise alone (0.002 mm, or 0.01,
+        // or a cell of lambda_1) the meshes picked modes apart, the map error was not monotone
+        // in the resolution and no adaptive run was within 1.2x (src/mesh/remesh/README.md,
+        // "Case 11's modes pinned by waves").
+        waves: &[(8.0, 0.001), (2.0, 0.001)],
+        noise_mm: Some(0.0005),
         uniform: &[(48, 28), (64, 37), (96, 55), (128, 74)],
         start: (48, 28),
         every: 3,
@@ -158,15 +171,18 @@ const CASES: [Case; 4] = [
         mesh: "cells: (128, 74), pattern: Equilateral, z: 1.0125",
         lambda_mm: None,
         cell_mm: 1.0,
+        waves: &[],
+        noise_mm: None,
         uniform: &[(64, 37), (96, 55), (128, 74)],
         start: (64, 37),
         every: 1,
-        // Refined ahead over the disc and 2 mm around, held, one remesh before the first solve
-        // (with no margin the wrinkles form on the start mesh at the disc's rim). Map error 0.74-
-        // 0.77 degrees against 1.24-1.41 with the angle sweep, at fewer iterations while loading
-        // and more per held remesh (src/mesh/remesh/README.md, "The fig. 6-4 pinch refined ahead
-        // in the report").
-        ahead: Some(Ahead { isotropic: true, margins_mm: &[2.0], per_wavelength: &[6, 8], every: 10 }),
+        // Refined ahead over the disc and 2 or 4 mm around, held, one remesh before the first
+        // solve (with no margin the wrinkles form on the start mesh at the disc's rim). Map error
+        // 0.56-0.77 degrees against 1.24-1.41 with the angle sweep, at fewer iterations while
+        // loading; lambda_2 / 8 was no more accurate than / 6 and cost 14.7 iterations per held
+        // remesh (src/mesh/remesh/README.md, "The fig. 6-4 pinch refined ahead in the report",
+        // "Margins for the fig. 6-4 pinch").
+        ahead: Some(Ahead { isotropic: true, margins_mm: &[2.0, 4.0], per_wavelength: &[6], every: 10 }),
         adaptive: &[(0.1, 1.0, 0.4, 0.02), (0.1, 1.0, 0.3, 0.02), (0.1, 1.0, 0.2, 0.02)],
         quick: 2,
     },
@@ -181,6 +197,8 @@ const CASES: [Case; 4] = [
         // (with a cell of lambda_2 / 2 the uniform meshes up to 384 x 333 took one phase or the
         // other in patches of the ring, and no reference converged)
         cell_mm: 2.0,
+        waves: &[],
+        noise_mm: None,
         // (the reference 384 x 333: a 256 x 222 run differed from it by 0.2 degrees)
         uniform: &[(96, 83), (128, 111), (192, 166), (256, 222), (384, 333)],
         // (edges at most half the kernel radius, 0.5 mm: from a coarser start the first remesh
@@ -252,7 +270,7 @@ pub fn speed_error(
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
     let mut rows = Vec::new();
     for (_, case) in CASES.iter().enumerate().filter(|(i, _)| cases.is_empty() || cases.contains(i)) {
-        let text = smooth_perturbation(&std::fs::read_to_string(dir.join(case.scene))?, case.cell_mm);
+        let text = smooth_perturbation(&std::fs::read_to_string(dir.join(case.scene))?, case);
         let text = with_iteration_cap(&with_element(&text, element), ITERATION_CAP);
         let take = |n: usize| if quick { n.min(case.quick) } else { n };
         let mut series: Vec<Lk14Row> = Vec::new();
@@ -382,11 +400,23 @@ fn with_element(text: &str, element: BendingElement) -> String {
     text.replace(hinge, &format!("bending: Some((model: Tan, element: {element:?}))"))
 }
 
-/// The scene text with its perturbation made a Perlin field of `cell` (mm).
-fn smooth_perturbation(text: &str, cell: f64) -> String {
+/// The scene text with its perturbation made the case's smooth field: Perlin noise of its cell,
+/// at its noise amplitude, plus its waves.
+fn smooth_perturbation(text: &str, case: &Case) -> String {
     let start = text.find("perturbation: Some((").expect("a perturbed scene");
     let end = start + text[start..].find("))").expect("perturbation end");
-    format!("{}, cell: {cell}{}", &text[..end], &text[end..])
+    let mut fields = format!("{}, cell: {}", &text[start..end], case.cell_mm);
+    if let Some(a) = case.noise_mm {
+        let at = fields.find("amplitude: ").expect("an amplitude") + "amplitude: ".len();
+        let to = at + fields[at..].find(',').expect("more fields");
+        fields.replace_range(at..to, &a.to_string());
+    }
+    if !case.waves.is_empty() {
+        let waves: Vec<String> =
+            case.waves.iter().map(|(l, a)| format!("(wavelength: {l}, amplitude: {a}, axis: X)")).collect();
+        fields.push_str(&format!(", waves: [{}]", waves.join(", ")));
+    }
+    format!("{}{fields}{}", &text[..start], &text[end..])
 }
 
 /// The scene text with the swept layer's cells replaced and `extra` fields added to it.
@@ -491,6 +521,12 @@ pub struct HeldRemeshes {
     /// wrinkles have stopped creeping (`SETTLE_FRAMES`), else what a remesh's frame would take
     /// anyway.
     pub baseline: u32,
+    /// Then the frames without a remesh until one takes no Newton iteration (at most
+    /// `SETTLE_FRAMES`), and their iterations: what the remeshes leave to later frames (a frame
+    /// ends on the solver's stall test within 1000 times its tolerance, and the next frame at
+    /// the same load takes up the convergence where it stalled: at least STALL + 1 iterations).
+    pub after_frames: u32,
+    pub after: u32,
 }
 
 impl HeldRemeshes {
@@ -498,6 +534,15 @@ impl HeldRemeshes {
     /// frame without one (None: none changed it).
     pub fn per_remesh(&self) -> Option<f64> {
         (self.changed > 0).then(|| f64::from(self.iterations) / f64::from(self.changed) - f64::from(self.baseline))
+    }
+
+    /// The same with the frames after them counted too: the Newton iterations a remesh costs
+    /// until the patch is settled again.
+    pub fn per_remesh_settled(&self) -> Option<f64> {
+        (self.changed > 0).then(|| {
+            let frames = f64::from(self.changed + self.after_frames);
+            (f64::from(self.iterations + self.after) - frames * f64::from(self.baseline)) / f64::from(self.changed)
+        })
     }
 }
 
@@ -539,6 +584,20 @@ fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<
             held.changed += 1;
         }
     }
+    if held.changed > 0 {
+        every(sim, u32::MAX);
+        for _ in 0..SETTLE_FRAMES {
+            let iterations = sim.step().patches[0].newton_iterations;
+            if let Some(f) = sim.failure() {
+                return Err(f.into());
+            }
+            if iterations == 0 {
+                break;
+            }
+            held.after_frames += 1;
+            held.after += iterations;
+        }
+    }
     Ok(held)
 }
 
@@ -572,7 +631,8 @@ fn write(
          Uniform meshes of the swept layer against adaptive ones (REMESH.md) started from the coarsest uniform \
          mesh; the first frame is solved on that mesh, then it is remeshed every few frames. Every run of a case \
          has the same imperfection, a Perlin field of half the wavelength in material space (the whole wavelength \
-         on the localized pinch), meant to make every mesh select the same wrinkle mode (the shape and \
+         on the localized pinch; case 11: a quarter of the noise, plus sinusoids along x at lambda_1 and \
+         lambda_2, 1 um each, which fix both modes' phase and sign), meant to make every mesh select the same wrinkle mode (the shape and \
          wavelength columns show where it does not). Shape error: RMS distance between the final layer and the finest uniform \
          run's, on a grid in material space, over the reference's RMS wrinkle height. Time ratios (adaptive): \
          time per frame over the uniform time at the same shape (or |energy|) error, interpolated log-log along \
@@ -595,7 +655,10 @@ fn write(
          Newton iteration (at most {SETTLE_FRAMES}: the wrinkles creep on at the solver's tolerance for a frame \
          or two once the load stops), then {HELD_FRAMES} with a remesh every frame; the mean Newton iterations \
          of those whose remesh changed the topology, less those of the last frame without one (shown after \
-         `without`, 0 once settled), and how many of them did. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
+         `without`, 0 once settled), and how many of them did; then, with the frames after them without a \
+         remesh until one takes no iteration (at most {SETTLE_FRAMES}) counted too: a frame ends on the \
+         solver's stall test within 1000 times its tolerance, and the next one at the same load takes up the \
+         convergence where it stalled, so a remesh's cost goes on into the frames after it. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
          strain; their first remesh comes before the first solve): by default those of every case, \
@@ -613,7 +676,8 @@ fn write(
     let mut csv = String::from(
         "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
          wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
-         iterations_per_remesh_held,held_remeshes_changed,held_iterations_without_remesh,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
+         iterations_per_remesh_held,held_remeshes_changed,held_iterations_without_remesh,\
+         iterations_per_remesh_settled,held_frames_after,held_iterations_after,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -623,7 +687,13 @@ fn write(
         };
         let (ratio, ratio_energy, ratio_map) = (show(r.time_ratio), show(r.time_ratio_energy), show(r.time_ratio_map));
         let per_remesh = r.held.map_or(String::new(), |h| match h.per_remesh() {
-            Some(n) => format!("{n:.1} ({} of {HELD_FRAMES} changed it; {} without)", h.changed, h.baseline),
+            Some(n) => format!(
+                "{n:.1} ({} of {HELD_FRAMES} changed it; {} without); {:.1} with the {} frame(s) after",
+                h.changed,
+                h.baseline,
+                h.per_remesh_settled().unwrap_or(n),
+                h.after_frames
+            ),
             None => format!("none of {HELD_FRAMES} changed it"),
         });
         let wavelength = if r.wavelength_error.is_nan() {
@@ -651,7 +721,7 @@ fn write(
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{:.4},{},{},{:.6}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6}",
             csv_text(&r.series),
             csv_text(&r.setting),
             r.mean_vertices,
@@ -668,6 +738,9 @@ fn write(
             r.held.and_then(|h| h.per_remesh()).map_or(f64::NAN, |n| n),
             r.held.map_or(String::new(), |h| h.changed.to_string()),
             r.held.map_or(String::new(), |h| h.baseline.to_string()),
+            r.held.and_then(|h| h.per_remesh_settled()).map_or(f64::NAN, |n| n),
+            r.held.map_or(String::new(), |h| h.after_frames.to_string()),
+            r.held.map_or(String::new(), |h| h.after.to_string()),
             r.map_error.to_degrees(),
             r.time_ratio_map.map_or(f64::NAN, |t| t.0),
             r.time_ratio_map.is_some_and(|t| t.1),
@@ -724,11 +797,16 @@ mod tests {
     }
 
     #[test]
-    fn the_perturbation_becomes_a_perlin_field() {
+    fn the_perturbation_becomes_the_cases_smooth_field() {
         let text = "solver: (perturbation: Some((amplitude: 0.002, seed: 3))),";
         assert_eq!(
-            smooth_perturbation(text, 1.5),
-            "solver: (perturbation: Some((amplitude: 0.002, seed: 3, cell: 1.5))),"
+            smooth_perturbation(text, &CASES[0]),
+            "solver: (perturbation: Some((amplitude: 0.002, seed: 3, cell: 3))),"
+        );
+        assert_eq!(
+            smooth_perturbation(text, &CASES[1]),
+            "solver: (perturbation: Some((amplitude: 0.0005, seed: 3, cell: 1, waves: [(wavelength: 8, amplitude: \
+             0.001, axis: X), (wavelength: 2, amplitude: 0.001, axis: X)]))),"
         );
     }
 

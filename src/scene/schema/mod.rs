@@ -219,7 +219,7 @@ impl SolverSpec {
     }
 }
 
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Perturbation {
     /// Largest displacement (length units), uniform in [-amplitude, amplitude].
@@ -230,6 +230,24 @@ pub struct Perturbation {
     /// imperfection, so refining (or remeshing) does not redraw the wrinkle mode it seeds.
     #[serde(default)]
     pub cell: Option<f64>,
+    /// Sinusoids added to the smooth field (they need `cell`). Noise leaves a buckling mode's
+    /// phase and sign to a small projection that the mesh can tip; a wave at the mode's
+    /// wavelength sets them (the report's case 11).
+    #[serde(default)]
+    pub waves: Vec<Wave>,
+}
+
+/// amplitude x sin(2 pi u / wavelength), u the material coordinate along `axis` (X or Y) from
+/// the layer's material origin.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Wave {
+    /// Length units.
+    pub wavelength: f64,
+    /// Length units.
+    pub amplitude: f64,
+    #[serde(default)]
+    pub axis: Axis,
 }
 
 fn default_one() -> f64 {
