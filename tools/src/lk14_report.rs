@@ -568,15 +568,7 @@ fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<
         q.iter_mut(&mut sim.world).filter(|(l, _)| l.name == layer).for_each(|(_, mut r)| r.every = every);
     };
     every(sim, u32::MAX);
-    for _ in 0..SETTLE_FRAMES {
-        held.baseline = sim.step().patches[0].newton_iterations;
-        if let Some(f) = sim.failure() {
-            return Err(f.into());
-        }
-        if held.baseline == 0 {
-            break;
-        }
-    }
+    held.baseline = settle(sim)?.last().copied().unwrap_or(0);
     every(sim, 1);
     for _ in 0..HELD_FRAMES {
         let s = sim.step();
@@ -590,19 +582,23 @@ fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<
     }
     if held.changed > 0 {
         every(sim, u32::MAX);
-        for _ in 0..SETTLE_FRAMES {
-            let iterations = sim.step().patches[0].newton_iterations;
-            if let Some(f) = sim.failure() {
-                return Err(f.into());
-            }
-            if iterations == 0 {
-                break;
-            }
-            held.after_frames += 1;
-            held.after += iterations;
-        }
+        let after = settle(sim)?;
+        held.after_frames = after.iter().filter(|&&n| n > 0).count() as u32;
+        held.after = after.iter().sum();
     }
     Ok(held)
+}
+
+/// The Newton iterations of frames run until one takes none, at most `SETTLE_FRAMES`.
+fn settle(sim: &mut Simulation) -> Result<Vec<u32>, Box<dyn std::error::Error>> {
+    let mut iterations = Vec::new();
+    while iterations.len() < SETTLE_FRAMES as usize && iterations.last() != Some(&0) {
+        iterations.push(sim.step().patches[0].newton_iterations);
+        if let Some(f) = sim.failure() {
+            return Err(f.into());
+        }
+    }
+    Ok(iterations)
 }
 
 /// 1 when the last step's remesh of `layer` changed its topology.
