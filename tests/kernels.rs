@@ -213,3 +213,43 @@ fn the_trust_region_lowers_the_merit_at_every_step_of_a_buckling_frame() {
         line_search.iterations, line_search.factorizations, region.iterations, region.factorizations
     );
 }
+
+/// Issue 26: a frame that starts where the last one was accepted, on the same mesh and kernels,
+/// is accepted again without an iteration and leaves the state bitwise unchanged, also when the
+/// last one ended above the tolerance (at the round-off floor: after a remesh with the load held,
+/// re-iterating crawled 5-8 iterations a frame). A remesh (`invalidate`) makes it iterate again.
+#[test]
+fn a_held_frame_accepted_at_its_floor_is_not_solved_again() {
+    use skinsim::solve::{solve_frame, PackedPatch};
+    let scene = load_str(&held_sheet("Ldlt", "Clamp"), &scene_path("held.ron")).unwrap();
+    let mut sim = Simulation::new(&scene);
+    sim.step();
+    sim.step(); // the full compression, held from here on
+    let dt = sim.world.resource::<SimClock>().dt;
+    let mut q = sim.world.query::<&PackedPatch>();
+    let start = q.single(&sim.world).unwrap();
+    let mut packed = PackedPatch {
+        state: start.state.clone(),
+        elements: start.elements.clone(),
+        constraints: start.constraints.clone(),
+        length_scale: start.length_scale,
+        cache: Default::default(),
+        local: None,
+    };
+    let mut settings = scene.patches[0].solver.clone();
+    let first = solve_frame(&mut packed, &settings, dt).unwrap();
+    assert!(first.converged && first.iterations > 0, "from zero multipliers: {} iterations", first.iterations);
+    // The same state, now above a tighter tolerance but at the residual the last frame accepted.
+    settings.tolerance = first.residual / 10.0;
+    let x = packed.state.x.clone();
+    let held = solve_frame(&mut packed, &settings, dt).unwrap();
+    assert!(held.converged);
+    assert_eq!(held.iterations, 0);
+    assert_eq!(held.residual, first.residual);
+    assert!(packed.state.x == x, "the held frame moved the state");
+    let again = solve_frame(&mut packed, &settings, dt).unwrap();
+    assert_eq!(again.iterations, 0, "and again: it stays accepted");
+    packed.cache.invalidate(); // as a remesh or new kernels do
+    let remeshed = solve_frame(&mut packed, &settings, dt).unwrap();
+    assert!(remeshed.iterations > 0, "on a changed mesh the frame is solved");
+}

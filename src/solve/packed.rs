@@ -78,12 +78,17 @@ pub struct SolverCache {
     /// Lagrangian gradient (kept across a remesh while the rows' count holds: a row is one
     /// kernel's, in the patch's kernel order).
     pub multipliers: Vec<f64>,
+    /// The relative residual the last solve was accepted at, when it converged (above the
+    /// tolerance when it ended at the round-off floor); 0 after the topology or the kernels
+    /// changed.
+    pub accepted: f64,
 }
 
 impl SolverCache {
     pub fn invalidate(&mut self) {
         self.system = None;
         self.kkt = None;
+        self.accepted = 0.0;
     }
 }
 

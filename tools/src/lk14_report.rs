@@ -522,13 +522,12 @@ pub struct HeldRemeshes {
     /// The Newton iterations of their frames.
     pub iterations: u32,
     /// The Newton iterations of the last held frame before them, without a remesh: 0 once the
-    /// wrinkles have stopped creeping (`SETTLE_FRAMES`), else what a remesh's frame would take
-    /// anyway.
+    /// patch is settled (`SETTLE_FRAMES`), else what a remesh's frame would take anyway.
     pub baseline: u32,
     /// Then the frames without a remesh until one takes no Newton iteration (at most
     /// `SETTLE_FRAMES`), and their iterations: what the remeshes leave to later frames (a frame
-    /// ends on the solver's stall test within 1000 times its tolerance, and the next frame at
-    /// the same load takes up the convergence where it stalled: at least STALL + 1 iterations).
+    /// that starts where the last one was accepted, on the same mesh, takes none:
+    /// `solve::constrained`; kept as a check).
     pub after_frames: u32,
     pub after: u32,
 }
@@ -553,10 +552,10 @@ impl HeldRemeshes {
 /// Frames run past the last keyframe, remeshing every frame, to count what a remesh adds.
 const HELD_FRAMES: u32 = 3;
 
-/// Held frames without a remesh before those, at most: until one takes no Newton iteration. Once
-/// the load stops, the wrinkles creep on at the solver's tolerance for a frame or two (the
-/// localized pinch's 9 mm run: 6 and 8 iterations, then 0), which a remesh's frame would count
-/// as its own.
+/// Held frames without a remesh before those, at most: until one takes no Newton iteration. A
+/// loading frame may end on the solver's stall test; the held frame after it accepts that state
+/// as it stands (`solve::constrained`), where it once crept on for a frame or two (the localized
+/// pinch's 9 mm run: 6 and 8 iterations, then 0) that a remesh's frame would have counted.
 const SETTLE_FRAMES: u32 = 4;
 
 /// The remeshes of `layer` in `HELD_FRAMES` frames with the load held (the run past its last
@@ -652,13 +651,13 @@ fn write(
          material grid, without its best affine fit (a rigid or affine drift of the sheet), over the reference's \
          RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Iterations per remesh: \
          after the run, frames with the load held (past the last keyframe) and no remesh until one takes no \
-         Newton iteration (at most {SETTLE_FRAMES}: the wrinkles creep on at the solver's tolerance for a frame \
-         or two once the load stops), then {HELD_FRAMES} with a remesh every frame; the mean Newton iterations \
+         Newton iteration (at most {SETTLE_FRAMES}; a frame that starts where the last one was accepted, on \
+         the same mesh, takes none), then {HELD_FRAMES} with a remesh every frame; the mean Newton iterations \
          of those whose remesh changed the topology, less those of the last frame without one (shown after \
          `without`, 0 once settled), and how many of them did; then, with the frames after them without a \
-         remesh until one takes no iteration (at most {SETTLE_FRAMES}) counted too: a frame ends on the \
-         solver's stall test within 1000 times its tolerance, and the next one at the same load takes up the \
-         convergence where it stalled, so a remesh's cost goes on into the frames after it. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
+         remesh until one takes no iteration (at most {SETTLE_FRAMES}) counted too: a remesh's frame may end \
+         on the solver's stall test within 1000 times its tolerance, and the next frame at the same load and \
+         mesh accepts that state as it stands. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
          strain; their first remesh comes before the first solve): by default those of every case, \
