@@ -47,10 +47,11 @@ pub(super) fn newton_kkt(
     // them again. Only that test reads them: every other frame runs as from zero multipliers
     // (its first residual, the stall test's reference, unchanged).
     let warm = std::mem::take(&mut packed.cache.multipliers);
-    // A frame that starts where the last one was accepted, on the same mesh and kernels, is
-    // accepted again: at the round-off floor (residual within 1000x the tolerance, no progress
-    // over STALL iterations) re-iterating only crawls along a soft mode, 5-8 iterations a frame
-    // after a remesh with the load held (the fig. 6-4 pinch, `src/mesh/remesh/README.md`).
+    // A frame that starts with the kernels met and a residual no larger than the one the last
+    // frame was accepted at is accepted as it stands, on a remeshed layer too: when that frame
+    // ended at the round-off floor (within 1000x the tolerance, no progress over STALL
+    // iterations), iterating on from there only crawls along a soft mode, 5-8 iterations a frame
+    // with the load held (the fig. 6-4 pinch, `src/mesh/remesh/README.md`).
     let last_accepted = std::mem::take(&mut packed.cache.accepted);
     let (mut lambda, mut next_lambda, mut jac) = (vec![0.0; m], vec![0.0; m], Vec::new());
     let mut rho = 0.0f64;

@@ -79,8 +79,8 @@ pub struct SolverCache {
     /// kernel's, in the patch's kernel order).
     pub multipliers: Vec<f64>,
     /// The relative residual the last solve was accepted at, when it converged (above the
-    /// tolerance when it ended at the round-off floor); 0 after the topology or the kernels
-    /// changed.
+    /// tolerance when it ended at the round-off floor), else 0. Kept across a remesh: it is the
+    /// load's, not the mesh's.
     pub accepted: f64,
 }
 
@@ -88,7 +88,6 @@ impl SolverCache {
     pub fn invalidate(&mut self) {
         self.system = None;
         self.kkt = None;
-        self.accepted = 0.0;
     }
 }
 

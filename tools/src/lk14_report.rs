@@ -526,8 +526,8 @@ pub struct HeldRemeshes {
     pub baseline: u32,
     /// Then the frames without a remesh until one takes no Newton iteration (at most
     /// `SETTLE_FRAMES`), and their iterations: what the remeshes leave to later frames (a frame
-    /// that starts where the last one was accepted, on the same mesh, takes none:
-    /// `solve::constrained`; kept as a check).
+    /// that starts where the last one was accepted takes none: `solve::constrained`; kept as a
+    /// check).
     pub after_frames: u32,
     pub after: u32,
 }
@@ -651,13 +651,13 @@ fn write(
          material grid, without its best affine fit (a rigid or affine drift of the sheet), over the reference's \
          RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Iterations per remesh: \
          after the run, frames with the load held (past the last keyframe) and no remesh until one takes no \
-         Newton iteration (at most {SETTLE_FRAMES}; a frame that starts where the last one was accepted, on \
-         the same mesh, takes none), then {HELD_FRAMES} with a remesh every frame; the mean Newton iterations \
+         Newton iteration (at most {SETTLE_FRAMES}; a frame that starts where the last one was accepted \
+         takes none), then {HELD_FRAMES} with a remesh every frame; the mean Newton iterations \
          of those whose remesh changed the topology, less those of the last frame without one (shown after \
          `without`, 0 once settled), and how many of them did; then, with the frames after them without a \
          remesh until one takes no iteration (at most {SETTLE_FRAMES}) counted too: a remesh's frame may end \
-         on the solver's stall test within 1000 times its tolerance, and the next frame at the same load and \
-         mesh accepts that state as it stands. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
+         on the solver's stall test within 1000 times its tolerance, and the next frame at the same load \
+         accepts that state as it stands. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
          kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
          strain; their first remesh comes before the first solve): by default those of every case, \
