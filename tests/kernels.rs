@@ -33,6 +33,18 @@ Scene(name: "held", frames: 2, patches: [
     )
 }
 
+/// A copy of a solved patch with an empty solver cache: a solve from its state as from scratch.
+fn without_cache(start: &skinsim::solve::PackedPatch) -> skinsim::solve::PackedPatch {
+    skinsim::solve::PackedPatch {
+        state: start.state.clone(),
+        elements: start.elements.clone(),
+        constraints: start.constraints.clone(),
+        length_scale: start.length_scale,
+        cache: Default::default(),
+        local: None,
+    }
+}
+
 fn held(kkt: &str, projection: &str) -> (Simulation, Vec<skinsim_systems::FrameStats>) {
     let scene = load_str(&held_sheet(kkt, projection), &scene_path("held.ron")).unwrap_or_else(|e| panic!("{e}"));
     run(&scene)
@@ -178,14 +190,7 @@ fn the_trust_region_lowers_the_merit_at_every_step_of_a_buckling_frame() {
     let mut q = sim.world.query::<&PackedPatch>();
     let start = q.single(&sim.world).unwrap();
     let solve = |globalization| {
-        let mut packed = PackedPatch {
-            state: start.state.clone(),
-            elements: start.elements.clone(),
-            constraints: start.constraints.clone(),
-            length_scale: start.length_scale,
-            cache: Default::default(),
-            local: None,
-        };
+        let mut packed = without_cache(start);
         let mut settings = scene.patches[0].solver.clone();
         (settings.max_iterations, settings.globalization) = (200, globalization);
         solve_frame(&mut packed, &settings, dt).unwrap()
@@ -229,14 +234,7 @@ fn a_held_frame_accepted_at_its_floor_is_not_solved_again() {
     let dt = sim.world.resource::<SimClock>().dt;
     let mut q = sim.world.query::<&PackedPatch>();
     let start = q.single(&sim.world).unwrap();
-    let mut packed = PackedPatch {
-        state: start.state.clone(),
-        elements: start.elements.clone(),
-        constraints: start.constraints.clone(),
-        length_scale: start.length_scale,
-        cache: Default::default(),
-        local: None,
-    };
+    let mut packed = without_cache(start);
     let mut settings = scene.patches[0].solver.clone();
     let first = solve_frame(&mut packed, &settings, dt).unwrap();
     assert!(first.converged && first.iterations > 0, "from zero multipliers: {} iterations", first.iterations);
