@@ -1,6 +1,7 @@
 //! Motion: evaluates the patch's prescribed motions at this frame and writes the driven
 //! coordinates (H15 6.1: compression increments; bending for validation; LK14 5.3 blend shapes;
-//! KCK18 body poses and OBJ sequences).
+//! KCK18 body poses and OBJ sequences), and whether each patch's load is held since the last
+//! frame (`LoadHeld`).
 
 use bevy_ecs::prelude::*;
 use skinsim::model::*;
@@ -8,10 +9,15 @@ use skinsim::model::*;
 pub fn apply_motions(
     clock: Res<SimClock>,
     patches: Query<(&PatchMotion, &PatchLayers)>,
+    mut held: Query<(&PatchMotion, Option<&PatchCaptures>, &mut LoadHeld)>,
     layers: Query<(&Layer, &LayerVertices)>,
     mut vertices: Query<(&RestPos, &Prescribed, &mut Position)>,
 ) {
     let frame = clock.frame as f64;
+    for (motion, captures, mut load) in &mut held {
+        let captured = captures.is_some_and(|c| c.0.iter().any(|c| c.frame + 1 == clock.frame));
+        load.0 = clock.frame >= 2 && !captured && motion.motions.iter().all(|m| m.holds_at(frame));
+    }
     for (motion, patch_layers) in &patches {
         for &layer in patch_layers.entities() {
             let Ok((_, verts)) = layers.get(layer) else { continue };

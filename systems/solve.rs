@@ -2,32 +2,47 @@
 //! depend on which other patches share the world.
 
 use bevy_ecs::prelude::*;
+use bevy_ecs::query::QueryData;
 use rayon::prelude::*;
 use skinsim::model::*;
 use skinsim::solve::{solve_frame, PackedPatch, SolverSettings};
 
+/// What Solve works on of a patch.
+#[derive(QueryData)]
+#[query_data(mutable)]
+pub struct SolveItems {
+    pub patch: &'static Patch,
+    pub settings: &'static SolverSettings,
+    pub packed: &'static mut PackedPatch,
+    pub index: &'static PackedIndex,
+    pub anchors: Option<&'static AnchorReport>,
+    pub held: Option<&'static LoadHeld>,
+}
+
 pub fn solve_patches(
     clock: Res<SimClock>,
-    mut patches: Query<(&Patch, &SolverSettings, &mut PackedPatch, &PackedIndex, Option<&AnchorReport>)>,
+    mut patches: Query<SolveItems>,
     mut report: ResMut<FrameReport>,
     mut failure: ResMut<SimFailure>,
 ) {
     let mut work: Vec<_> = patches.iter_mut().collect();
-    work.sort_by_key(|(p, ..)| p.index);
+    work.sort_by_key(|p| p.patch.index);
     let outcomes: Vec<_> = work
         .par_iter_mut()
-        .map(|(patch, settings, packed, index, anchors)| {
-            let packed: &mut PackedPatch = packed;
+        .map(|p| {
+            let packed: &mut PackedPatch = &mut p.packed;
             let local = packed.local.take();
-            let out = solve_frame(packed, settings, clock.dt);
+            // (walking anchors change the load under held drivers)
+            packed.load_held = p.held.is_some_and(|h| h.0) && p.anchors.is_none();
+            let out = solve_frame(packed, p.settings, clock.dt);
             let size = PatchSize {
-                vertices: index.vertices.len(),
-                faces: index.faces,
-                tets: index.tets,
+                vertices: p.index.vertices.len(),
+                faces: p.index.faces,
+                tets: p.index.tets,
                 inverted: packed.inverted_tets(),
                 constraints: packed.constraints.rows(),
             };
-            (patch.name.clone(), size, out, anchors.copied(), local)
+            (p.patch.name.clone(), size, out, p.anchors.copied(), local)
         })
         .collect();
     report.patches.clear();

@@ -440,3 +440,34 @@ fn a_joint_bends_a_finger_and_its_skin_follows() {
     assert!(bone.z < -0.005, "the far half went down: {bone}");
     assert!((skin - bone).length() < 0.002, "skin {skin} vs bone {bone}");
 }
+
+#[test]
+fn a_load_is_held_only_while_every_motion_holds_and_no_capture_ran() {
+    use bevy_ecs::system::RunSystemOnce;
+    use skinsim::model::{Capture, Keyframes, LoadHeld, Motion, MotionKind, PatchCaptures, PatchMotion, SimClock};
+    let mut world = World::new();
+    let motion = |keys: Vec<(u32, f64)>| Motion {
+        layers: vec![],
+        kind: MotionKind::Compress { axis: 0, predict: false },
+        keyframes: Keyframes(keys),
+    };
+    let capture = Capture { layers: vec![], frame: 5, fraction: 1.0, map: None };
+    let patch = world
+        .spawn((
+            PatchMotion {
+                motions: vec![motion(vec![(0, 0.0), (3, 0.1)]), motion(vec![(0, 0.0)])],
+                ..Default::default()
+            },
+            PatchCaptures(vec![capture]),
+            LoadHeld::default(),
+        ))
+        .id();
+    let mut held = Vec::new();
+    for frame in 1..=7 {
+        world.insert_resource(SimClock { frame, time: 0.0, dt: 1.0 });
+        world.run_system_once(skinsim_systems::motion::apply_motions).unwrap();
+        held.push(world.get::<LoadHeld>(patch).unwrap().0);
+    }
+    // Frames 1-3 load, 4 and 5 hold, 6 follows frame 5's capture (a new rest state), 7 holds.
+    assert_eq!(held, [false, false, false, true, true, false, true]);
+}

@@ -129,6 +129,25 @@ impl Motion {
     }
 }
 
+impl Motion {
+    /// Whether it maps every point at `frame` as it did at `frame - 1` (past its last keyframe,
+    /// or between two equal keys), up to the round-off of interpolating at a key (0.1 x 3 / 3).
+    pub fn holds_at(&self, frame: f64) -> bool {
+        let before = frame - 1.0;
+        let same = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * a.abs().max(b.abs());
+        match &self.kind {
+            MotionKind::Blend(b) => b.weights(frame).into_iter().zip(b.weights(before)).all(|(a, b)| same(a, b)),
+            MotionKind::Sequence { frames, start } => {
+                let index = |f: f64| ((f - *start as f64).max(0.0) as usize).min(frames.len().saturating_sub(1));
+                index(frame) == index(before)
+            }
+            _ => {
+                same(self.keyframes.at(frame, Interpolation::Linear), self.keyframes.at(before, Interpolation::Linear))
+            }
+        }
+    }
+}
+
 /// The keyframes after `frame` of `motions` (a blend shape's: its targets' weight keys), sorted,
 /// each once.
 pub fn keyframes_after(motions: &[&Motion], frame: u32) -> Vec<u32> {
@@ -156,6 +175,12 @@ pub struct PatchMotion {
     pub motions: Vec<Motion>,
     pub centre: DVec3,
 }
+
+/// Whether a patch's load this frame is the last frame's (a component beside `PatchMotion`,
+/// written by the Motion stage): every motion holds and no capture changed the rest state
+/// after the last solve. From frame 2 on only: frame 1 loads the initial state.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadHeld(pub bool);
 
 /// A prestrain capture (H15 4.3): after the solve of `frame`, `fraction` (times the map at the
 /// element, if any) of the current state of `layers` becomes their rest state.
@@ -205,6 +230,32 @@ mod tests {
         assert_eq!(k.at(15.0, Interpolation::Linear), 0.75);
         assert_eq!(k.at(99.0, Interpolation::Linear), 0.5);
         assert_eq!(k.at(7.0, Interpolation::Linear), 0.7);
+    }
+
+    #[test]
+    fn a_motion_holds_past_its_last_key_and_between_equal_keys() {
+        let squeeze = |keys: Vec<(u32, f64)>| Motion {
+            layers: vec![],
+            kind: MotionKind::Compress { axis: 0, predict: false },
+            keyframes: Keyframes(keys),
+        };
+        let m = squeeze(vec![(0, 0.0), (3, 0.1), (6, 0.1), (8, 0.2)]);
+        let holds: Vec<bool> = (1..=10).map(|f| m.holds_at(f as f64)).collect();
+        // (at frame 3, 0.1 x 3 / 3 is 0.1 to one ulp)
+        assert_eq!(holds, [false, false, false, true, true, true, false, false, true, true]);
+        let b = BlendShape {
+            targets: vec![(vec![DVec3::X], Keyframes(vec![(0, 0.0), (3, 1.0)]))],
+            interpolation: Interpolation::Smooth,
+        };
+        let blend = Motion { layers: vec![], kind: MotionKind::Blend(b), keyframes: Keyframes(vec![]) };
+        assert!(!blend.holds_at(3.0) && blend.holds_at(4.0));
+        let sequence = Motion {
+            layers: vec![],
+            kind: MotionKind::Sequence { frames: vec![vec![DVec3::ZERO]; 3], start: 5 },
+            keyframes: Keyframes(vec![]),
+        };
+        let holds: Vec<bool> = (4..=9).map(|f| sequence.holds_at(f as f64)).collect();
+        assert_eq!(holds, [true, true, false, false, true, true], "frames 0, 1, 2 at 5, 6, 7; the last after");
     }
 
     #[test]

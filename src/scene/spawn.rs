@@ -113,7 +113,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32, role: Role) -> (En
         world.entity_mut(patch).insert(AnchorReport::default());
     }
     if !motion.motions.is_empty() {
-        world.entity_mut(patch).insert(motion);
+        world.entity_mut(patch).insert((motion, LoadHeld::default()));
     }
     if !captures.is_empty() {
         world.entity_mut(patch).insert(PatchCaptures(captures));

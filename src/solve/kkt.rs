@@ -209,7 +209,10 @@ impl KktSystem {
         loop {
             match self.step_shifted(h, h_values, j_values, g, c, dx, lambda, shift) {
                 Ok(()) => return Ok(()),
-                Err(_) => shift = self.raise(shift).ok_or(NotPositiveDefinite)?,
+                Err(_) => {
+                    tracing::trace!(shift, negative = ?self.negative, m = self.m, curvature = self.curvature, "KKT try failed");
+                    shift = self.raise(shift).ok_or(NotPositiveDefinite)?
+                }
             }
         }
     }

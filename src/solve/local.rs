@@ -227,6 +227,7 @@ fn sub_patch(packed: &PackedPatch, free: &[bool]) -> (PackedPatch, Vec<u32>) {
         length_scale: packed.length_scale,
         cache: Default::default(),
         local: None,
+        load_held: false,
     };
     (sub, map)
 }

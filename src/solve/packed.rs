@@ -27,6 +27,10 @@ pub struct PackedPatch {
     pub cache: SolverCache,
     /// What the Settle stage's region solve did this frame (issue 26 item 2), for the report.
     pub local: Option<super::local::LocalReport>,
+    /// Whether this frame's load is the one the last solve was accepted under (`LoadHeld`,
+    /// set by the Solve system): the frame is then converged once its residual is back within
+    /// the one the load was accepted at (`SolverCache::accepted`), on a remeshed layer too.
+    pub load_held: bool,
 }
 
 /// Per packed vertex: what Newton iterates on.
@@ -138,6 +142,7 @@ impl PackedPatch {
             constraints: Constraints::default(),
             cache: SolverCache::default(),
             local: None,
+            load_held: false,
         }
     }
 }
