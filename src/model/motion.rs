@@ -117,9 +117,7 @@ impl Motion {
             }
             MotionKind::Joint(j) => j.bend(p, v),
             MotionKind::Sequence { frames, start } => {
-                let last = frames.len().saturating_sub(1);
-                let i = ((frame - *start as f64).max(0.0) as usize).min(last);
-                frames.get(i).map_or(p, |d| p + d[index])
+                frames.get(sequence_index(frames.len(), *start, frame)).map_or(p, |d| p + d[index])
             }
             MotionKind::Blend(b) => {
                 let w = b.weights(frame);
@@ -127,9 +125,7 @@ impl Motion {
             }
         }
     }
-}
 
-impl Motion {
     /// Whether it maps every point at `frame` as it did at `frame - 1` (past its last keyframe,
     /// or between two equal keys), up to the round-off of interpolating at a key (0.1 x 3 / 3).
     pub fn holds_at(&self, frame: f64) -> bool {
@@ -138,14 +134,18 @@ impl Motion {
         match &self.kind {
             MotionKind::Blend(b) => b.weights(frame).into_iter().zip(b.weights(before)).all(|(a, b)| same(a, b)),
             MotionKind::Sequence { frames, start } => {
-                let index = |f: f64| ((f - *start as f64).max(0.0) as usize).min(frames.len().saturating_sub(1));
-                index(frame) == index(before)
+                sequence_index(frames.len(), *start, frame) == sequence_index(frames.len(), *start, before)
             }
             _ => {
                 same(self.keyframes.at(frame, Interpolation::Linear), self.keyframes.at(before, Interpolation::Linear))
             }
         }
     }
+}
+
+/// The frame of a sequence of `len` frames from `start` shown at `frame` (the last holds after).
+fn sequence_index(len: usize, start: u32, frame: f64) -> usize {
+    ((frame - start as f64).max(0.0) as usize).min(len.saturating_sub(1))
 }
 
 /// The keyframes after `frame` of `motions` (a blend shape's: its targets' weight keys), sorted,
