@@ -54,6 +54,7 @@ pub(super) fn newton_kkt(
     // with the load held (the fig. 6-4 pinch, `src/mesh/remesh/README.md`).
     let last_accepted = std::mem::take(&mut packed.cache.accepted);
     let held = packed.load_held && inertia.is_none();
+    kkt.held = held;
     let (mut lambda, mut next_lambda, mut jac) = (vec![0.0; m], vec![0.0; m], Vec::new());
     let mut rho = 0.0f64;
     let mut region = TrustRegion::new();
@@ -231,7 +232,16 @@ pub(super) fn newton_kkt(
     if result.is_ok() {
         start.finish(packed);
         packed.cache.multipliers = lambda;
-        packed.cache.accepted = if out.converged { out.residual.min(1e3 * settings.tolerance) } else { 0.0 };
+        // Under a held load the level stays the load's: a held frame converged below it (a
+        // remeshed frame solved past it, or one that starts converged) does not tighten what
+        // the next held remesh must reach (the pinch's third held remesh had to reach the
+        // second's residual, 5.3e-6, not the load's 7.2e-6).
+        let level = out.residual.min(1e3 * settings.tolerance);
+        packed.cache.accepted = match (out.converged, held) {
+            (false, _) => 0.0,
+            (true, true) => level.max(last_accepted),
+            (true, false) => level,
+        };
     }
     result.map(|_| out)
 }

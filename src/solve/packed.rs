@@ -83,8 +83,9 @@ pub struct SolverCache {
     /// kernel's, in the patch's kernel order).
     pub multipliers: Vec<f64>,
     /// The relative residual the last solve was accepted at, when it converged (above the
-    /// tolerance when it ended at the round-off floor), else 0. Kept across a remesh: it is the
-    /// load's, not the mesh's.
+    /// tolerance when it ended at the round-off floor), else 0; under a held load never below
+    /// the one the load was first accepted at. Kept across a remesh: it is the load's, not the
+    /// mesh's.
     pub accepted: f64,
 }
 
