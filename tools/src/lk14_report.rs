@@ -273,16 +273,16 @@ pub fn speed_error(
     std::fs::create_dir_all(out)?;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
     let mut rows = Vec::new();
-    for (_, case) in CASES.iter().enumerate().filter(|(i, _)| cases.is_empty() || cases.contains(i)) {
+    for (ci, case) in CASES.iter().enumerate().filter(|(i, _)| cases.is_empty() || cases.contains(i)) {
         let text = smooth_perturbation(&std::fs::read_to_string(dir.join(case.scene))?, case);
         let text = with_iteration_cap(&with_element(&text, element), ITERATION_CAP);
         let take = |n: usize| if quick { n.min(case.quick) } else { n };
         let mut series: Vec<Lk14Row> = Vec::new();
         for &(nx, ny) in case.uniform.iter().take(take(case.uniform.len())) {
             let scene_text = mesh_line(&text, case.mesh, nx, ny, "");
+            keep_scene(out, CASE_KEYS[ci], series.len(), "uniform", &scene_text)?;
             series.push(run(case, &scene_text, &dir, "uniform", format!("{nx} x {ny} cells"), quick)?);
         }
-        let ci = CASES.iter().position(|c| std::ptr::eq(c, case)).expect("a case");
         let term = wavelength_term.applies(ci);
         // (every setting without the term or without `ahead`; with both, the first setting at each
         // margin and number of elements per wavelength)
@@ -318,6 +318,7 @@ pub fn speed_error(
                 (false, _) => String::new(),
             };
             let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm, every {every}{by_wavelength}");
+            keep_scene(out, CASE_KEYS[ci], series.len(), "adaptive", &scene_text)?;
             series.push(run(case, &scene_text, &dir, "adaptive", setting, quick)?);
         }
         // The reference: the finest uniform run.
@@ -436,6 +437,13 @@ fn mesh_line(text: &str, mesh: &str, nx: u32, ny: u32, extra: &str) -> String {
     out
 }
 
+/// Writes a run's scene as `scenes/<case>_<row>_<kind>.ron` in `out`, beside its map: `skinsim
+/// run` on it repeats the run's timed frames (the held remeshes after them are the report's).
+fn keep_scene(out: &Path, case: &str, row: usize, kind: &str, text: &str) -> std::io::Result<()> {
+    std::fs::create_dir_all(out.join("scenes"))?;
+    std::fs::write(out.join("scenes").join(format!("{case}_{row}_{kind}.ron")), text)
+}
+
 fn run(
     case: &Case,
     text: &str,
@@ -521,6 +529,8 @@ pub struct HeldRemeshes {
     pub changed: u32,
     /// The Newton iterations of their frames.
     pub iterations: u32,
+    /// The same, frame by frame (the first `changed`).
+    pub each: [u32; HELD_FRAMES as usize],
     /// The Newton iterations of the last held frame before them, without a remesh: 0 once the
     /// patch is settled (`SETTLE_FRAMES`), else what a remesh's frame would take anyway.
     pub baseline: u32,
@@ -539,12 +549,41 @@ impl HeldRemeshes {
         (self.changed > 0).then(|| f64::from(self.iterations) / f64::from(self.changed) - f64::from(self.baseline))
     }
 
+    /// The Newton iterations of each remesh's frame that changed the mesh, as "5, 1, 1".
+    pub fn listed(&self) -> String {
+        let each: Vec<String> = self.each[..self.changed as usize].iter().map(u32::to_string).collect();
+        each.join(", ")
+    }
+
     /// The same with the frames after them counted too: the Newton iterations a remesh costs
     /// until the patch is settled again.
     pub fn per_remesh_settled(&self) -> Option<f64> {
         (self.changed > 0).then(|| {
             let frames = f64::from(self.changed + self.after_frames);
             (f64::from(self.iterations + self.after) - frames * f64::from(self.baseline)) / f64::from(self.changed)
+        })
+    }
+}
+
+/// The held remeshes of a report's adaptive runs together (issue 26's target: the mean over the
+/// sweep).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldSummary {
+    pub scheduled: u32,
+    pub changed: u32,
+    /// Newton iterations of the frames whose remesh changed the mesh, beyond each run's held
+    /// frame without a remesh.
+    pub extra: i64,
+}
+
+impl HeldSummary {
+    /// None: no run measured its held remeshes (`--quick`, or no adaptive run).
+    pub fn over<'a>(runs: impl IntoIterator<Item = &'a HeldRemeshes>) -> Option<Self> {
+        let held: Vec<&HeldRemeshes> = runs.into_iter().collect();
+        (!held.is_empty()).then(|| HeldSummary {
+            scheduled: HELD_FRAMES * held.len() as u32,
+            changed: held.iter().map(|h| h.changed).sum(),
+            extra: held.iter().map(|h| i64::from(h.iterations) - i64::from(h.changed * h.baseline)).sum(),
         })
     }
 }
@@ -575,6 +614,7 @@ fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<
             return Err(f.into());
         }
         if remeshed(sim, layer, s.frame) == 1 {
+            held.each[held.changed as usize] = s.patches[0].newton_iterations;
             held.iterations += s.patches[0].newton_iterations;
             held.changed += 1;
         }
@@ -660,7 +700,8 @@ fn write(
          remesh until one takes no iteration (at most {SETTLE_FRAMES}) counted too: a remesh's frame may end \
          on the solver's stall test within 1000 times its tolerance, and the next frame at the same load \
          accepts that state as it stands. Each run's wrinkle map is in maps/ (case, row of the case from 0, \
-         kind). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
+         kind), and its scene in scenes/, named alike: `skinsim run` on it repeats the run's frames (`--quick` \
+         runs 2 of them). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
          strain; their first remesh comes before the first solve): by default those of every case, \
          `--wavelength-term all` or `off` for every case or none (without it each case's \
@@ -678,7 +719,8 @@ fn write(
         "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
          wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
          iterations_per_remesh_held,held_remeshes_changed,held_iterations_without_remesh,\
-         iterations_per_remesh_settled,held_frames_after,held_iterations_after,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error\n",
+         iterations_per_remesh_settled,held_frames_after,held_iterations_after,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error,\
+         held_iterations_each\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -689,8 +731,9 @@ fn write(
         let (ratio, ratio_energy, ratio_map) = (show(r.time_ratio), show(r.time_ratio_energy), show(r.time_ratio_map));
         let per_remesh = r.held.map_or(String::new(), |h| match h.per_remesh() {
             Some(n) => format!(
-                "{n:.1} ({} of {HELD_FRAMES} changed it; {} without); {:.1} with the {} frame(s) after",
+                "{n:.1} ({} of {HELD_FRAMES} changed it: {}; {} without); {:.1} with the {} frame(s) after",
                 h.changed,
+                h.listed(),
                 h.baseline,
                 h.per_remesh_settled().unwrap_or(n),
                 h.after_frames
@@ -722,7 +765,7 @@ fn write(
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6},{}",
             csv_text(&r.series),
             csv_text(&r.setting),
             r.mean_vertices,
@@ -746,6 +789,20 @@ fn write(
             r.time_ratio_map.map_or(f64::NAN, |t| t.0),
             r.time_ratio_map.is_some_and(|t| t.1),
             r.height_error,
+            r.held.map_or(String::new(), |h| h.listed().replace(", ", ";")),
+        );
+    }
+    if let Some(s) = HeldSummary::over(rows.iter().filter_map(|r| r.held.as_ref())) {
+        let _ = writeln!(
+            md,
+            "\nHeld remeshes over these runs: {} of {} scheduled changed the mesh, and their frames took {} Newton \
+             iterations beyond a held frame without a remesh: {:.1} per remesh that changed it, {:.1} per scheduled \
+             remesh.",
+            s.changed,
+            s.scheduled,
+            s.extra,
+            s.extra as f64 / f64::from(s.changed.max(1)),
+            s.extra as f64 / f64::from(s.scheduled.max(1)),
         );
     }
     std::fs::write(out.join("speed_error_lk14.md"), md)?;
@@ -809,6 +866,18 @@ mod tests {
             "solver: (perturbation: Some((amplitude: 0.0005, seed: 3, cell: 1, waves: [(wavelength: 8, amplitude: \
              0.001, axis: X), (wavelength: 2, amplitude: 0.001, axis: X)]))),"
         );
+    }
+
+    #[test]
+    fn held_remeshes_are_listed_and_summed_beyond_each_runs_frame_without_one() {
+        let a = HeldRemeshes { changed: 3, iterations: 7, each: [5, 1, 1], ..Default::default() };
+        let b = HeldRemeshes { changed: 1, iterations: 9, each: [9, 0, 0], baseline: 2, ..Default::default() };
+        let none = HeldRemeshes::default();
+        assert_eq!((a.listed(), b.listed(), none.listed()), ("5, 1, 1".into(), "9".into(), String::new()));
+        assert_eq!(b.per_remesh(), Some(7.0));
+        let s = HeldSummary::over([&a, &b, &none]).unwrap();
+        assert_eq!(s, HeldSummary { scheduled: 9, changed: 4, extra: 14 });
+        assert_eq!(HeldSummary::over([]), None);
     }
 
     #[test]
