@@ -55,8 +55,10 @@ pub struct Lk14Row {
     /// The time ratio at the same wrinkle-map error.
     pub time_ratio_map: Option<(f64, bool)>,
     /// Height-field error against the reference, without the affine part
-    /// (`field_error::height_error`).
+    /// (`field_error::height_error`); NaN when the run's material grid is not the reference's.
     pub height_error: f64,
+    /// The time ratio at the same height-field error.
+    pub time_ratio_height: Option<(f64, bool)>,
     /// Frames whose remesh changed the swept layer's topology.
     pub remeshes: u32,
     /// Adaptive runs: the remeshes at a held load (past the last keyframe, remeshing every frame
@@ -341,17 +343,23 @@ pub fn speed_error(
             r.height_error =
                 if r.grid_uv == grid_uv { field_error::height_error(&grid_uv, &shape, &r.grid) } else { f64::NAN };
         }
+        // (a run without the error, a NaN height, is left off the front)
         let front = |f: fn(&Lk14Row) -> f64| -> Vec<(f64, f64)> {
-            series[..finest].iter().map(|r| (f(r), r.ms_per_frame)).collect()
+            series[..finest].iter().map(|r| (f(r), r.ms_per_frame)).filter(|(e, _)| !e.is_nan()).collect()
         };
-        let (uniform, energy, maps) =
-            (front(|r| r.shape_error), front(|r| r.energy_error.abs()), front(|r| r.map_error));
+        let (uniform, energy, maps, heights) = (
+            front(|r| r.shape_error),
+            front(|r| r.energy_error.abs()),
+            front(|r| r.map_error),
+            front(|r| r.height_error),
+        );
         for r in &mut series[finest + 1..] {
             let ratio =
                 |front: &[(f64, f64)], e: f64| time_at_error(front, e).map(|(t, upper)| (r.ms_per_frame / t, upper));
             r.time_ratio = ratio(&uniform, r.shape_error);
             r.time_ratio_energy = ratio(&energy, r.energy_error.abs());
             r.time_ratio_map = ratio(&maps, r.map_error);
+            r.time_ratio_height = ratio(&heights, r.height_error);
         }
         rows.extend(series);
     }
@@ -508,6 +516,7 @@ fn run(
         time_ratio_energy: None,
         map_error: 0.0,
         time_ratio_map: None,
+        time_ratio_height: None,
         height_error: 0.0,
         remeshes,
         held,
@@ -674,7 +683,7 @@ fn write(
          lambda_2, 1 um each, which fix both modes' phase and sign), meant to make every mesh select the same wrinkle mode (the shape and \
          wavelength columns show where it does not). Shape error: RMS distance between the final layer and the finest uniform \
          run's, on a grid in material space, over the reference's RMS wrinkle height. Time ratios (adaptive): \
-         time per frame over the uniform time at the same shape (or |energy|) error, interpolated log-log along \
+         time per frame over the uniform time at the same map, height, shape or |energy| error, interpolated log-log along \
          the uniform runs' Pareto front, each kept only if more accurate than every cheaper one (`<`: no \
          uniform run but the reference is as accurate, so the ratio is at most this; blank: every uniform run is \
          more accurate). Wavelength error: the dominant peak (case 10) or the peak nearest lambda_2 (case 11) \
@@ -711,16 +720,16 @@ fn write(
          ending in `ahead, M mm around, held` (the two pinches) bound every edge there and M mm around. A held face is released where a free face meets it across an edge the sizing field \
          wants split. Under `lookahead` the term reads the kinematic base only, not the dermis.\n\n\
          | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
-         map error (deg) | time ratio (map) | height error | shape error | time ratio (shape) | \
-         wavelength error | energy error | time ratio (energy) |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+         map error (deg) | time ratio (map) | height error | time ratio (height) | shape error | \
+         time ratio (shape) | wavelength error | energy error | time ratio (energy) |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     let mut csv = String::from(
         "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
          wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
          iterations_per_remesh_held,held_remeshes_changed,held_iterations_without_remesh,\
          iterations_per_remesh_settled,held_frames_after,held_iterations_after,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error,\
-         held_iterations_each\n",
+         held_iterations_each,time_ratio_height,height_ratio_is_upper_bound\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -728,7 +737,8 @@ fn write(
             Some((q, false)) => format!("{q:.2}"),
             None => String::new(),
         };
-        let (ratio, ratio_energy, ratio_map) = (show(r.time_ratio), show(r.time_ratio_energy), show(r.time_ratio_map));
+        let (ratio, ratio_energy, ratio_map, ratio_height) =
+            (show(r.time_ratio), show(r.time_ratio_energy), show(r.time_ratio_map), show(r.time_ratio_height));
         let per_remesh = r.held.map_or(String::new(), |h| match h.per_remesh() {
             Some(n) => format!(
                 "{n:.1} ({} of {HELD_FRAMES} changed it: {}; {} without); {:.1} with the {} frame(s) after",
@@ -751,7 +761,8 @@ fn write(
         };
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.0} | {iterations} | {} | {per_remesh} | {:.2} | {ratio_map} | {:.3} | {:.3} | {ratio} \
+            "| {} | {} | {:.0} | {:.0} | {iterations} | {} | {per_remesh} | {:.2} | {ratio_map} | {:.3} | {ratio_height} \
+             | {:.3} | {ratio} \
              | {wavelength} | {:+.3} % | {ratio_energy} |",
             r.series,
             r.setting,
@@ -765,7 +776,7 @@ fn write(
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6},{}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6},{},{},{}",
             csv_text(&r.series),
             csv_text(&r.setting),
             r.mean_vertices,
@@ -790,6 +801,8 @@ fn write(
             r.time_ratio_map.is_some_and(|t| t.1),
             r.height_error,
             r.held.map_or(String::new(), |h| h.listed().replace(", ", ";")),
+            r.time_ratio_height.map_or(f64::NAN, |t| t.0),
+            r.time_ratio_height.is_some_and(|t| t.1),
         );
     }
     if let Some(s) = HeldSummary::over(rows.iter().filter_map(|r| r.held.as_ref())) {
@@ -888,5 +901,7 @@ mod tests {
         assert!((t / 1000f64.sqrt() / 10.0 - 1.0).abs() < 1e-12 && !upper, "{t}");
         assert_eq!(time_at_error(&uniform, 0.001), Some((10000.0, true)));
         assert_eq!(time_at_error(&uniform, 1.2), None);
+        // (a NaN error, a run on another material grid, has no ratio)
+        assert_eq!(time_at_error(&uniform, f64::NAN), None);
     }
 }

@@ -377,7 +377,12 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     assert_eq!(rows.len(), 14, "{lk14}");
     assert_eq!(rows.iter().filter(|l| l.contains("adaptive")).count(), 7, "{lk14}");
     assert!(lk14.contains("map error (deg)") && lk14.contains("height error"), "{lk14}");
+    assert!(lk14.contains("time ratio (height)"), "{lk14}");
     assert_eq!(std::fs::read_dir(dir.join("maps")).unwrap().count(), 14);
+    // Each run's scene beside its map, a scene `skinsim` accepts as it stands.
+    assert_eq!(std::fs::read_dir(dir.join("scenes")).unwrap().count(), 14);
+    let kept = skinsim().arg("check").arg(dir.join("scenes/pinch_3_adaptive.ron")).output().unwrap();
+    assert!(kept.status.success(), "{}", String::from_utf8_lossy(&kept.stderr));
     let svg = std::fs::read_to_string(dir.join("speed_error_lk14.svg")).unwrap();
     assert!(svg.starts_with("<svg"));
     // Axis labels with units, the reference marked, log ticks without float noise.
