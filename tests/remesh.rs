@@ -553,13 +553,19 @@ fn the_wavelength_term_refines_before_the_first_solve() {
             .map(|&e| w.get::<EdgeVerts>(e).unwrap().0.map(uv))
             .map(|[a, b]| (a.x - b.x).abs())
             .fold(0.0f64, f64::max);
-        (report, widest)
+        (report, widest, stats[0].clone())
     };
-    let (report, widest) = refine(", wavelength: Some((per_wavelength: 8, onset: 0.5))");
+    let (report, widest, first) = refine(", wavelength: Some((per_wavelength: 8, onset: 0.5))");
     println!("frame 1 remeshed: {report:?}; widest edge across the compression {widest:.3e} m");
     assert_eq!(report.frame, 1, "{report:?}");
     assert!(widest <= 6e-3 / 8.0 * (1.0 + 1e-9), "{widest}");
-    let (report, widest) = refine("");
+    // The layer was at rest: its new vertices start at their rest positions (no strain, so no
+    // energy but round-off), and nothing is settled. (With the curved midpoints and the settle,
+    // 1e-10 J here.)
+    let start = first.patches[0].start_energy;
+    assert!(start.abs() < 1e-15, "the refined strip starts strained: {start:e} J");
+    assert_eq!(first.timing(Stage::Settle), 0.0, "a layer at rest was settled");
+    let (report, widest, _) = refine("");
     assert_eq!(report.frame, 0, "no remesh before the first solve without the term");
     assert!(widest > 1.4e-3, "{widest}");
 }
