@@ -204,10 +204,10 @@ mod tests {
         let mut guess: Vec<f64> = (0..n).map(|i| ((i as f64 + 1.0) * 12.9898).sin().fract() - 0.5).collect();
         precondition(&mut guess);
         let residual = smallest(n, 1, &mut apply, &mut precondition, Some(&guess), 40, Stop::Residual(1e-2));
-        let steady = smallest(n, 1, &mut apply, &mut precondition, Some(&guess), 40, Stop::Steady(1e-4));
+        let steady = smallest(n, 1, &mut apply, &mut precondition, Some(&guess), 40, Stop::Steady(1e-8));
         assert_eq!(residual.iterations, 40, "{residual:?}");
         assert!(residual.residual > 1.0);
-        assert!(steady.iterations < 20, "{} iterations", steady.iterations);
+        assert!(steady.iterations < 30, "{} iterations", steady.iterations);
         assert!((steady.value + 0.5).abs() < 1e-6 && (residual.value + 0.5).abs() < 1e-6, "{steady:?}");
         assert!(steady.vector[1].abs() > 1.0 - 1e-6 && steady.vector[0] == 0.0);
     }

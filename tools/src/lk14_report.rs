@@ -729,7 +729,8 @@ fn write(
          kind), and its scene in scenes/, named alike: `skinsim run` on it repeats the run's frames (`--quick` \
          runs 2 of them). Adaptive runs whose setting ends in lambda / N add the wavelength term (edges across the \
          compression at most the kernels' wavelength over N where the compression passes half the critical \
-         strain; their first remesh comes before the first solve): by default those of every case, \
+         strain; their first remesh comes before the first solve, and leaves the layer at rest: each new \
+         vertex at its rest position, imperfection included): by default those of every case, \
          `--wavelength-term all` or `off` for every case or none (without it each case's \
          settings sweep the angle, remeshed on the frame's compression and curvature). Those ending in `ahead, held` (cases 10 and 11) bound the edges where the kinematic base will be \
          compressed at its last keyframe (case 10: those across the compression; case 11: every edge), from the \
