@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 
-use super::eigen::{self, Stop};
+use super::eigen;
 use super::kkt::KktSystem;
 use super::linear::{symmetric_product_into, CholeskySolver};
 use super::pattern::Pattern;
@@ -22,12 +22,6 @@ const BLOCK: usize = 1;
 const FIRST_ITERATIONS: u32 = 8;
 const MAX_ITERATIONS: u32 = 40;
 const TOLERANCE: f64 = 1e-2;
-const RESIDUAL: Stop = Stop::Residual(TOLERANCE);
-/// The constrained test's LOBPCG stops when its value moves by less than this fraction over an
-/// iteration (a Ritz value's error is quadratic in its vector's: about 1e-4 left in the
-/// direction). Measured at 1e-4, the square of TOLERANCE: the fig. 6-4 pinch's uniform runs
-/// escaped into other modes than with 40 iterations; at 1e-8 into the same ones.
-const STEADY: f64 = 1e-8;
 /// The shifted preconditioner: sigma = SHIFT x |first curvature estimate|, x4 per failed try.
 /// Sixteen tries span 4^15: on the full H15 3D patch the first stage's estimate is 1e5 times too
 /// small (relative residual 6e4), eight tries never reached a definite shift, and the escape went
@@ -70,7 +64,7 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<V
     let block = (negative + 1).min(BLOCK);
     let mut pair = {
         let mut precondition = |r: &mut [f64]| chol.solve_abs(r);
-        eigen::smallest(n, block, &mut apply, &mut precondition, None, FIRST_ITERATIONS, RESIDUAL)
+        eigen::smallest(n, block, &mut apply, &mut precondition, None, FIRST_ITERATIONS, TOLERANCE)
     };
     tracing::debug!(curvature = pair.value, residual = pair.residual, iterations = pair.iterations, "first estimate");
     if pair.residual > TOLERANCE && pair.value < 0.0 {
@@ -89,7 +83,7 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<V
             if definite {
                 let mut precondition = |r: &mut [f64]| chol.solve(r);
                 let guess = Some(pair.vector.as_slice());
-                let better = eigen::smallest(n, block, &mut apply, &mut precondition, guess, MAX_ITERATIONS, RESIDUAL);
+                let better = eigen::smallest(n, block, &mut apply, &mut precondition, guess, MAX_ITERATIONS, TOLERANCE);
                 if better.value <= pair.value {
                     pair = better;
                 }
@@ -145,8 +139,7 @@ pub fn test_constrained(pattern: &Pattern, kkt: &mut KktSystem, h: &[f64], jac: 
     // A start in the null space: the preconditioner applied to a fixed pseudo-random vector.
     let mut guess: Vec<f64> = (0..n).map(|i| ((i as f64 + 1.0) * 12.9898).sin().fract() - 0.5).collect();
     precondition(&mut guess);
-    let pair =
-        eigen::smallest(n, BLOCK, &mut apply, &mut precondition, Some(&guess), MAX_ITERATIONS, Stop::Steady(STEADY));
+    let pair = eigen::smallest(n, BLOCK, &mut apply, &mut precondition, Some(&guess), MAX_ITERATIONS, TOLERANCE);
     // Rayleigh-Ritz may pick up round-off outside the null space, where H can be negative too
     // (measured on a 3-dimensional null space: the Ritz vector ended mostly there): inverse
     // iteration steps with the same factor put the direction back in it.
