@@ -561,7 +561,7 @@ fn the_wavelength_term_refines_before_the_first_solve() {
     assert!(widest <= 6e-3 / 8.0 * (1.0 + 1e-9), "{widest}");
     // The layer was at rest: its new vertices start at their rest positions (no strain, so no
     // energy but round-off), and nothing is settled. (With the curved midpoints and the settle,
-    // 1e-10 J here.)
+    // 1.9e-12 J here.)
     let start = first.patches[0].start_energy;
     assert!(start.abs() < 1e-15, "the refined strip starts strained: {start:e} J");
     assert_eq!(first.timing(Stage::Settle), 0.0, "a layer at rest was settled");
