@@ -74,19 +74,13 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
         }
         _ => Vec::new(),
     };
-    // A layer that has not moved (the remesh before the first solve) stays at rest: a new vertex
-    // takes its own rest position, imperfection included, instead of the curved midpoint of its
-    // parents', so the state is the one a uniform mesh of the same faces starts from and there
-    // is nothing to settle.
-    let at_rest = input.iter().all(|v| v.x == v.rest && v.v == DVec3::ZERO);
-    let mut out = remesh_under(imperfection.as_ref(), input, &faces, &extra, &held, &settings.params);
+    let out = remesh_under(imperfection.as_ref(), input, &faces, &extra, &held, &settings.params);
     let small = out.is_small(settings.min_change, faces.len());
     let report = RemeshReport::new(frame, settings.params.size_max, &out, small, (verts.len(), faces.len()));
     world.entity_mut(layer).insert(report);
     if !small && out.changed() {
         let mut settings = *settings;
-        if at_rest {
-            out.vertices.iter_mut().filter(|v| v.origin.is_none()).for_each(|v| v.x = v.rest);
+        if out.at_rest {
             (settings.settle, settings.local_solve) = (false, false);
         }
         crate::remesh_write::apply(world, layer, &settings, &verts, (&old_faces, &tris), &out);

@@ -69,8 +69,28 @@ impl Imperfection {
 
 /// Remeshes the layer's rest shape without its smooth imperfection (if any), which new vertices
 /// then get at their own material point: interpolating it from the parents would resample the
-/// imperfection on the old mesh. (Survivors keep their rest positions.)
+/// imperfection on the old mesh. (Survivors keep their rest positions.) A layer at rest (every
+/// position its rest position, no velocity, bit for bit: the remesh before the first solve)
+/// stays at rest: a new vertex takes its rest position, not the curved midpoint of its parents',
+/// so the state is the one a uniform mesh of the same faces starts from (`Remeshed::at_rest`).
 pub fn remesh_under(
+    imperfection: Option<&Imperfection>,
+    input: Vec<RemeshVertex>,
+    faces: &[[u32; 3]],
+    extra: &[DMat2],
+    held: &[bool],
+    p: &RemeshParams,
+) -> Remeshed {
+    let at_rest = input.iter().all(|v| v.x == v.rest && v.v == DVec3::ZERO);
+    let mut out = remesh_rest(imperfection, input, faces, extra, held, p);
+    if at_rest {
+        out.vertices.iter_mut().filter(|v| v.origin.is_none()).for_each(|v| v.x = v.rest);
+        out.at_rest = true;
+    }
+    out
+}
+
+fn remesh_rest(
     imperfection: Option<&Imperfection>,
     mut input: Vec<RemeshVertex>,
     faces: &[[u32; 3]],

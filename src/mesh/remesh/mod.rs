@@ -97,6 +97,9 @@ pub struct Remeshed {
     /// The sizing metric of each output vertex.
     pub sizing: Vec<DMat2>,
     pub stats: RemeshStats,
+    /// The input was at rest and so is the output (`imperfection::remesh_under`): nothing to
+    /// settle.
+    pub at_rest: bool,
 }
 
 impl Remeshed {

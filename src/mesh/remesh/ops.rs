@@ -481,6 +481,6 @@ impl<'a> WorkMesh<'a> {
             .filter(|(_, a)| **a)
             .map(|(f, _)| f.map(|v| index[v as usize]))
             .collect();
-        Remeshed { vertices, faces, sizing, stats: self.stats }
+        Remeshed { vertices, faces, sizing, stats: self.stats, at_rest: false }
     }
 }
