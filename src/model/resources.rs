@@ -112,6 +112,9 @@ pub struct PatchReport {
     pub line_search_failures: u32,
     /// Unstable equilibria left along negative curvature (quasistatic stability check).
     pub escapes: u32,
+    /// Full steps under a held load taken back because the energy rose far past their quadratic
+    /// model (counted in `newton_iterations`).
+    pub unmodelled_steps: u32,
     /// Numeric Cholesky factorizations and conjugate-gradient iterations in the frame.
     pub factorizations: u32,
     pub cg_iterations: u32,
@@ -168,6 +171,7 @@ impl PatchReport {
             regularized: o.regularized,
             line_search_failures: o.line_search_failures,
             escapes: o.escapes,
+            unmodelled_steps: o.unmodelled_steps,
             factorizations: o.factorizations,
             cg_iterations: o.cg_iterations,
             constraints: size.constraints,

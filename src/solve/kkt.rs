@@ -236,6 +236,17 @@ impl KktSystem {
         }
     }
 
+    /// After a step its quadratic model did not predict (`constrained`, under a held load): the
+    /// next step's first shift is ten times this one's, at least ten times SHIFT_FIRST. False
+    /// past SHIFT_MAX, where there is nothing stiffer to try.
+    pub fn stiffen(&mut self) -> bool {
+        if self.last_shift >= SHIFT_MAX {
+            return false;
+        }
+        self.last_shift = 10.0 * SHIFT_DECREASE * self.last_shift.max(SHIFT_FIRST);
+        true
+    }
+
     /// Whether the last successful step's KKT matrix had the stable inertia at a shift of
     /// round-off size (at most SHIFT_MIN): H was then positive definite on the null space of J
     /// up to round-off, as the stability test would find it a step later.
@@ -585,6 +596,19 @@ mod tests {
         assert_eq!(kkt.raise(SHIFT_FIRST), Some(10.0 * SHIFT_FIRST), "then x10, as before");
         kkt.curvature = true;
         assert_eq!(kkt.raise(0.0), Some(SHIFT_FIRST), "negative curvature: as before");
+    }
+
+    #[test]
+    fn a_stiffened_step_starts_ten_times_stiffer() {
+        let (.., mut kkt) = setup([1.0; 6], KktMethod::Ldlt);
+        assert!(kkt.stiffen());
+        assert_eq!(kkt.first_shift(), 10.0 * SHIFT_FIRST, "from an unshifted step: 10 x SHIFT_FIRST");
+        kkt.last_shift = 1e-2;
+        assert!(kkt.stiffen());
+        assert!((kkt.first_shift() - 1e-1).abs() < 1e-15, "{}", kkt.first_shift());
+        kkt.last_shift = SHIFT_MAX;
+        assert!(!kkt.stiffen(), "nothing stiffer past SHIFT_MAX");
+        assert_eq!(kkt.last_shift, SHIFT_MAX);
     }
 
     #[test]

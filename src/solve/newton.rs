@@ -19,7 +19,7 @@ use crate::physics::Projection;
 pub(super) const ARMIJO: f64 = 1e-4;
 const MAX_HALVINGS: u32 = 40;
 /// Round-off band of an energy sum, relative to its elements' energy at unit strain.
-const ROUND_OFF: f64 = 1e-13;
+pub(super) const ROUND_OFF: f64 = 1e-13;
 /// Saddles left per frame at most.
 pub(super) const MAX_ESCAPES: u32 = 4;
 /// Mixed precision: a Newton step is refined until |H dx + g| <= REFINED |g|, with at most
@@ -39,6 +39,9 @@ pub struct FrameOutcome {
     pub line_search_failures: u32,
     /// Times the solve left an unstable equilibrium along negative curvature.
     pub escapes: u32,
+    /// Full steps under a held load taken back because the energy rose past their quadratic
+    /// model (`constrained`; each counted in `iterations`).
+    pub unmodelled_steps: u32,
     /// Numeric Cholesky factorizations, and conjugate-gradient iterations (Krylov mode).
     pub factorizations: u32,
     pub cg_iterations: u32,
