@@ -720,7 +720,8 @@ fn write(
          Newton iteration (at most {SETTLE_FRAMES}; a frame that starts where the last one was accepted \
          takes none), then {HELD_FRAMES} with a remesh every frame (the load held, a remesh's frame is \
          converged once its residual is back within the one the load was accepted at, at the tolerance \
-         or at the stall test's floor); the mean Newton iterations \
+         or at the stall test's floor, and a full step whose energy change is far off its quadratic model \
+         is taken back, counted, and tried stiffer); the mean Newton iterations \
          of those whose remesh changed the topology, less those of the last frame without one (shown after \
          `without`, 0 once settled), and how many of them did; then, with the frames after them without a \
          remesh until one takes no iteration (at most {SETTLE_FRAMES}) counted too: a remesh's frame may end \
