@@ -823,7 +823,9 @@ Scene(
 /// its quadratic model (the l1 merit still falls). Such a step is taken back and tried stiffer
 /// (`solve::constrained`, HELD_MODEL_ERROR). The report's held remeshes on this pinch (after a
 /// held frame that takes no iteration, three frames remeshed every frame) took 2, 12 and 3
-/// Newton iterations without the rule, and take 2, 2 and 2 with it, one step taken back.
+/// Newton iterations without the rule, and 2, 2 and 2 with it, one step taken back. The load
+/// ends at the round-off floor (the stall test); a held frame back within that test's band of
+/// it (twice its residual) is at the floor too (`held_level`): the third remesh then takes 1.
 #[test]
 fn a_held_remesh_takes_back_a_step_its_model_did_not_predict() {
     let scene = skinsim::scene::load_str(HELD_PINCH, &scratch_dir("held-pinch").join("scene.ron"))
@@ -833,20 +835,27 @@ fn a_held_remesh_takes_back_a_step_its_model_did_not_predict() {
         let mut q = sim.world.query::<(&Layer, &mut RemeshSettings)>();
         q.iter_mut(&mut sim.world).filter(|(l, _)| l.name == "epidermis").for_each(|(_, mut r)| r.every = every);
     };
+    let mut level = 0.0;
     for _ in 0..10 {
-        sim.step();
+        level = sim.step().patches[0].residual;
     }
+    assert!(level > 1e-8, "the load ends at the round-off floor, above the tolerance: {level:e}");
     every(&mut sim, u32::MAX);
     assert_eq!(sim.step().patches[0].newton_iterations, 0, "the held load's first frame starts converged");
     every(&mut sim, 1);
-    let (mut iterations, mut taken_back) = (Vec::new(), 0);
+    let (mut iterations, mut taken_back, mut in_band) = (Vec::new(), 0, 0);
     for _ in 0..3 {
         let p = sim.step().patches[0].clone();
         assert!(p.converged && sim.failure().is_none());
         iterations.push(p.newton_iterations);
         taken_back += p.unmodelled_steps;
+        in_band += u32::from(p.residual > level && p.residual <= 2.0 * level);
     }
-    println!("held remeshes: {iterations:?} Newton iterations, {taken_back} step(s) taken back");
+    println!("held remeshes: {iterations:?} Newton iterations, {taken_back} step(s) taken back, {in_band} in the band");
     assert!(taken_back >= 1, "no step was taken back: {iterations:?}");
-    assert!(iterations.iter().sum::<u32>() <= 8, "{iterations:?} (2, 12, 3 without the rule)");
+    assert!(in_band >= 1, "no held frame was accepted within the floor's band: {iterations:?}");
+    assert!(
+        iterations.iter().sum::<u32>() <= 5,
+        "{iterations:?} (2, 12, 3 without the rule; 2, 2, 2 without the band)"
+    );
 }

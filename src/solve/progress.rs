@@ -9,6 +9,8 @@ use crate::physics::Projection;
 pub(super) const ADAPTIVE_SWITCH: f64 = 1e-3;
 /// Iterations without progress that signal the round-off floor.
 pub(super) const STALL: usize = 4;
+/// No progress: a residual above this fraction of the one STALL iterations back.
+pub(super) const PROGRESS: f64 = 0.5;
 /// Smallest force scale, relative to the elements' forces at unit strain.
 pub(super) const FORCE_FLOOR: f64 = 1e-6;
 
@@ -62,7 +64,8 @@ impl Progress {
         }
         self.history.push(residual);
         let h = &self.history;
-        let stalled = h.len() > STALL && residual <= 1e3 * self.tolerance && residual >= 0.5 * h[h.len() - 1 - STALL];
+        let stalled =
+            h.len() > STALL && residual <= 1e3 * self.tolerance && residual >= PROGRESS * h[h.len() - 1 - STALL];
         self.empty || residual <= self.tolerance || stalled
     }
 

@@ -719,9 +719,10 @@ fn write(
          after the run, frames with the load held (past the last keyframe) and no remesh until one takes no \
          Newton iteration (at most {SETTLE_FRAMES}; a frame that starts where the last one was accepted \
          takes none), then {HELD_FRAMES} with a remesh every frame (the load held, a remesh's frame is \
-         converged once its residual is back within the one the load was accepted at, at the tolerance \
-         or at the stall test's floor, and a full step whose energy change is far off its quadratic model \
-         is taken back, counted, and tried stiffer); the mean Newton iterations \
+         converged once its residual is back within the one the load was accepted at, the tolerance, \
+         or twice the stall test's floor when the load ended on it (that test's own band), and a full \
+         step whose energy change is far off its quadratic model is taken back, counted, and tried \
+         stiffer); the mean Newton iterations \
          of those whose remesh changed the topology, less those of the last frame without one (shown after \
          `without`, 0 once settled), and how many of them did; then, with the frames after them without a \
          remesh until one takes no iteration (at most {SETTLE_FRAMES}) counted too: a remesh's frame may end \
