@@ -29,7 +29,8 @@ pub struct PackedPatch {
     pub local: Option<super::local::LocalReport>,
     /// Whether this frame's load is the one the last solve was accepted under (`LoadHeld`,
     /// set by the Solve system): the frame is then converged once its residual is back within
-    /// the one the load was accepted at (`SolverCache::accepted`), on a remeshed layer too.
+    /// the one the load was accepted at (`SolverCache::accepted`; twice it when that was the
+    /// stall test's floor, `constrained::held_level`), on a remeshed layer too.
     pub load_held: bool,
 }
 
