@@ -17,9 +17,10 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use skinsim::model::Stage;
 use skinsim::physics::BendingElement;
 use skinsim::scene;
-use skinsim_systems::Simulation;
+use skinsim_systems::{FrameStats, Simulation};
 
 use crate::field_error;
 use crate::plot::{LogLog, Point};
@@ -61,6 +62,9 @@ pub struct Lk14Row {
     pub time_ratio_height: Option<(f64, bool)>,
     /// Frames whose remesh changed the swept layer's topology.
     pub remeshes: u32,
+    /// Remesh, settle and resampling (property, kernel, adjust) over the timed frames' wall
+    /// time, the run's and its largest frame's (issue 26's target: under 15 % of a frame).
+    pub remesh_share: RemeshShare,
     /// Adaptive runs: the remeshes at a held load (past the last keyframe, remeshing every frame
     /// for `HELD_FRAMES`) and what they added.
     pub held: Option<HeldRemeshes>,
@@ -467,6 +471,7 @@ fn run(
     let mut sim = Simulation::new(&built);
     let (mut vertices, mut iterations, mut seconds, mut energy, mut unconverged) = (0.0, 0, 0.0, 0.0, 0);
     let mut remeshes = 0;
+    let mut share = RemeshShare::default();
     for _ in 0..built.scene.frames {
         let clock = std::time::Instant::now();
         let s = sim.step();
@@ -474,6 +479,7 @@ fn run(
         if let Some(f) = sim.failure() {
             return Err(f.into());
         }
+        share.add(&s);
         // (the swept layer's own vertices, counted outside the timed step)
         vertices += sim.layer_mesh("skin", case.layer).0.len() as f64;
         iterations += s.patches[0].newton_iterations;
@@ -519,6 +525,7 @@ fn run(
         time_ratio_height: None,
         height_error: 0.0,
         remeshes,
+        remesh_share: share,
         held,
         reference: false,
         energy,
@@ -529,6 +536,40 @@ fn run(
     };
     eprintln!("{}: {}: {:.0} ms/frame, {:.0} vertices", row.series, row.setting, row.ms_per_frame, row.mean_vertices);
     Ok(row)
+}
+
+/// Remesh, settle and resampling time against the frames' (`FrameStats` timings).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RemeshShare {
+    remesh_ms: f64,
+    total_ms: f64,
+    /// The largest one frame's share.
+    pub largest: f64,
+}
+
+impl RemeshShare {
+    /// The stages a remesh brings: the remesh, the settle of its new vertices, and the
+    /// property and kernel resampling with the adjust (VALIDATION.md G's t_R + t_S).
+    const STAGES: [Stage; 5] =
+        [Stage::Remesh, Stage::Settle, Stage::PropertyResample, Stage::ConstraintResample, Stage::ConstraintAdjust];
+
+    pub fn add(&mut self, s: &FrameStats) {
+        let (remesh, total) = (Self::STAGES.iter().map(|&k| s.timing(k)).sum::<f64>(), s.total_ms());
+        self.remesh_ms += remesh;
+        self.total_ms += total;
+        if total > 0.0 {
+            self.largest = self.largest.max(remesh / total);
+        }
+    }
+
+    /// Over all the frames added.
+    pub fn mean(&self) -> f64 {
+        if self.total_ms > 0.0 {
+            self.remesh_ms / self.total_ms
+        } else {
+            0.0
+        }
+    }
 }
 
 /// What the remeshes of `HELD_FRAMES` frames at a held load did.
@@ -715,7 +756,10 @@ fn write(
          rectangle), pixel by pixel, before the maps' 8-bit encoding (its steps, up to half a degree, would \
          hide finer differences). Height error: the RMS of the height difference to the reference on the \
          material grid, without its best affine fit (a rigid or affine drift of the sheet), over the reference's \
-         RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Iterations per remesh: \
+         RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Remesh share: \
+         the remesh, the settle of its new vertices and the property and kernel resampling (with the \
+         kernels' adjust) over the timed frames' wall time, over the run and in its largest frame. \
+         Iterations per remesh: \
          after the run, frames with the load held (past the last keyframe) and no remesh until one takes no \
          Newton iteration (at most {SETTLE_FRAMES}; a frame that starts where the last one was accepted \
          takes none), then {HELD_FRAMES} with a remesh every frame (the load held, a remesh's frame is \
@@ -739,17 +783,18 @@ fn write(
          first remesh on, and no later remesh changes a face there whose edges meet the bound (`hold`); those \
          ending in `ahead, M mm around, held` (the two pinches) bound every edge there and M mm around. A held face is released where a free face meets it across an edge the sizing field \
          wants split. Under `lookahead` the term reads the kinematic base only, not the dermis.\n\n\
-         | series | setting | vertices | ms / frame | Newton iterations | remeshes | iterations per remesh (held load) | \
+         | series | setting | vertices | ms / frame | Newton iterations | remeshes | remesh share (run; largest frame) \
+         | iterations per remesh (held load) | \
          map error (deg) | time ratio (map) | height error | time ratio (height) | shape error | \
          time ratio (shape) | wavelength error | energy error | time ratio (energy) |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     let mut csv = String::from(
         "series,setting,mean_vertices,ms_per_frame,newton_iterations,shape_error,time_ratio,ratio_is_upper_bound,\
          wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
          iterations_per_remesh_held,held_remeshes_changed,held_iterations_without_remesh,\
          iterations_per_remesh_settled,held_frames_after,held_iterations_after,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error,\
-         held_iterations_each,time_ratio_height,height_ratio_is_upper_bound\n",
+         held_iterations_each,time_ratio_height,height_ratio_is_upper_bound,remesh_share,remesh_share_largest_frame\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -781,7 +826,8 @@ fn write(
         };
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.0} | {iterations} | {} | {per_remesh} | {:.2} | {ratio_map} | {:.3} | {ratio_height} \
+            "| {} | {} | {:.0} | {:.0} | {iterations} | {} | {:.1} %; {:.1} % | {per_remesh} | {:.2} | {ratio_map} | {:.3} \
+             | {ratio_height} \
              | {:.3} | {ratio} \
              | {wavelength} | {:+.3} % | {ratio_energy} |",
             r.series,
@@ -789,6 +835,8 @@ fn write(
             r.mean_vertices,
             r.ms_per_frame,
             r.remeshes,
+            100.0 * r.remesh_share.mean(),
+            100.0 * r.remesh_share.largest,
             r.map_error.to_degrees(),
             r.height_error,
             r.shape_error,
@@ -796,7 +844,7 @@ fn write(
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6},{},{},{}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6},{},{},{},{:.5},{:.5}",
             csv_text(&r.series),
             csv_text(&r.setting),
             r.mean_vertices,
@@ -823,10 +871,26 @@ fn write(
             r.held.map_or(String::new(), |h| h.listed().replace(", ", ";")),
             r.time_ratio_height.map_or(f64::NAN, |t| t.0),
             r.time_ratio_height.is_some_and(|t| t.1),
+            r.remesh_share.mean(),
+            r.remesh_share.largest,
         );
     }
     if let Some(s) = HeldSummary::over(rows.iter().filter_map(|r| r.held.as_ref())) {
         let _ = writeln!(md, "\nHeld remeshes over these runs: {}", s.sentence());
+    }
+    let adaptive: Vec<&RemeshShare> =
+        rows.iter().filter(|r| r.series.ends_with("adaptive")).map(|r| &r.remesh_share).collect();
+    if !adaptive.is_empty() {
+        let range = |f: &dyn Fn(&RemeshShare) -> f64| {
+            let v: Vec<f64> = adaptive.iter().map(|s| 100.0 * f(s)).collect();
+            (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(0.0, f64::max))
+        };
+        let ((lo, hi), (_, top)) = (range(&|s| s.mean()), range(&|s| s.largest));
+        let _ = writeln!(
+            md,
+            "\nRemesh and resampling in the adaptive runs: {lo:.1}-{hi:.1} % of a run's time, at most {top:.1} % of \
+             one frame's."
+        );
     }
     std::fs::write(out.join("speed_error_lk14.md"), md)?;
     std::fs::write(out.join("speed_error_lk14.csv"), csv)
@@ -857,6 +921,28 @@ fn plot(stem: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_remesh_share_sums_the_remesh_stages_over_the_frames_and_keeps_the_largest_frame() {
+        let frame = |stages: &[(Stage, f64)], total: f64| {
+            let mut timings_ms = serde_json::Map::new();
+            for k in Stage::ALL {
+                let ms = stages.iter().find(|(s, _)| *s == k).map_or(0.0, |s| s.1);
+                timings_ms.insert(k.key().into(), ms.into());
+            }
+            timings_ms.insert("total".into(), total.into());
+            FrameStats { frame: 0, time: 0.0, patches: Vec::new(), timings_ms }
+        };
+        let mut share = RemeshShare::default();
+        share.add(&frame(
+            &[(Stage::Remesh, 10.0), (Stage::Settle, 5.0), (Stage::ConstraintAdjust, 5.0), (Stage::Solve, 80.0)],
+            100.0,
+        ));
+        share.add(&frame(&[(Stage::PropertyResample, 1.0), (Stage::Solve, 299.0)], 300.0));
+        assert!((share.mean() - 21.0 / 400.0).abs() < 1e-15, "{share:?}");
+        assert!((share.largest - 0.2).abs() < 1e-15, "{share:?}");
+        assert_eq!(RemeshShare::default().mean(), 0.0);
+    }
 
     #[test]
     fn the_swept_mesh_line_is_edited_and_remesh_added_to_its_layer() {
