@@ -7,7 +7,8 @@
 //! gets the same smooth imperfection (a Perlin perturbation in material space): with the
 //! default vertex-random one each mesh draws its own, and the wrinkle mode it seeds (measured
 //! on case 10: 14 or 16 waves by seed, at any resolution) would swamp the discretization
-//! error. Writes speed_error_lk14.md, .csv, .svg and .png (time per frame against shape error).
+//! error. Writes speed_error_lk14.md, .csv, .svg and .png (time per frame against shape error), and
+//! speed_error_lk14_map.* and _height.* (against the wrinkle-map and height-field errors).
 //!
 //! Case 10's reference is 512 x 72 (32 elements per wavelength). Before the constrained
 //! stability test (issue 26 item 5) that run stopped at a saddle in its first frame and wrinkled
@@ -368,7 +369,7 @@ pub fn speed_error(
         rows.extend(series);
     }
     write(out, &rows, element, wavelength_term, cases)?;
-    plot(&out.join("speed_error_lk14"), &rows)?;
+    plots(&out.join("speed_error_lk14"), &rows)?;
     Ok(rows)
 }
 
@@ -896,21 +897,57 @@ fn write(
     std::fs::write(out.join("speed_error_lk14.csv"), csv)
 }
 
-fn plot(stem: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>> {
+/// The three plots of time per frame against an error: `<stem>.*` (shape), `<stem>_map.*` and
+/// `<stem>_height.*` (issue 26's errors a user can see).
+fn plots(stem: &Path, rows: &[Lk14Row]) -> Result<(), Box<dyn std::error::Error>> {
+    let name = |suffix: &str| {
+        stem.with_file_name(format!("{}{suffix}", stem.file_name().unwrap_or_default().to_string_lossy()))
+    };
+    plot(
+        &name(""),
+        rows,
+        |r| 100.0 * r.shape_error,
+        "LK14: time per frame against shape error",
+        "shape error against the finest uniform run (RMS distance / RMS wrinkle height, %)",
+    )?;
+    plot(
+        &name("_map"),
+        rows,
+        |r| r.map_error.to_degrees(),
+        "LK14: time per frame against wrinkle-map error",
+        "wrinkle-map error against the finest uniform run (mean angle between the maps' normals, degrees)",
+    )?;
+    plot(
+        &name("_height"),
+        rows,
+        |r| 100.0 * r.height_error,
+        "LK14: time per frame against height-field error",
+        "height-field error against the finest uniform run (RMS without the affine part / RMS wrinkle height, %)",
+    )
+}
+
+fn plot(
+    stem: &Path,
+    rows: &[Lk14Row],
+    error: impl Fn(&Lk14Row) -> f64,
+    caption: &str,
+    x_label: &str,
+) -> Result<(), Box<dyn std::error::Error>> {
     // The reference runs have no error: drawn left of every other point.
-    let floor = rows.iter().map(|r| r.shape_error).filter(|e| *e > 0.0).fold(1.0f64, f64::min) / 2.0;
+    let floor = rows.iter().map(&error).filter(|e| *e > 0.0).fold(100.0f64, f64::min) / 2.0;
     let points = rows
         .iter()
+        .filter(|r| r.reference || error(r).is_finite())
         .map(|r| Point {
             series: r.series.clone(),
-            x: 100.0 * if r.reference { floor } else { r.shape_error.max(floor) },
+            x: if r.reference { floor } else { error(r).max(floor) },
             y: r.ms_per_frame,
             reference: r.reference,
         })
         .collect();
     let plot = LogLog {
-        caption: "LK14: time per frame against shape error",
-        x_label: "shape error against the finest uniform run (RMS distance / RMS wrinkle height, %)",
+        caption,
+        x_label,
         y_label: "time per frame (ms)",
         points,
         reference_label: Some("reference (finest uniform run): no error, drawn at half the smallest"),

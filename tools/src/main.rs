@@ -84,8 +84,9 @@ enum Command {
     },
     /// Speed against error (VALIDATION.md F): sweeps the resolution of the wrinkling cases and
     /// writes speed_error.md, .csv, .svg and .png (H15 cases 7 and 9: time per increment against
-    /// error, log-log) and speed_error_lk14.* (LK14 cases 10 and 11: uniform against adaptive
-    /// meshes, time per frame against energy error).
+    /// error, log-log) and speed_error_lk14.* (LK14 cases 10 and 11 and two pinches: uniform
+    /// against adaptive meshes, time per frame against the wrinkle-map, height, shape and energy
+    /// errors; plots speed_error_lk14_map.*, _height.* and speed_error_lk14.*, against shape).
     Report {
         /// Output folder.
         #[arg(long, default_value = "report")]

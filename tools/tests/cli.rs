@@ -392,7 +392,15 @@ fn report_writes_the_speed_against_error_table_csv_and_plot() {
     assert_eq!(csv.lines().count(), 15);
     // (series and settings hold commas: quoted, every row has the header's columns)
     assert_columns(&csv);
-    for png in ["speed_error.png", "speed_error_lk14.png"] {
+    // (issue 26) The user-visible errors plotted too.
+    let map = std::fs::read_to_string(dir.join("speed_error_lk14_map.svg")).unwrap();
+    assert!(map.contains("wrinkle-map error") && map.contains("localized pinch"), "{map}");
+    assert!(
+        lk14.contains("remesh share (run; largest frame)")
+            && lk14.contains("Remesh and resampling in the adaptive runs"),
+        "{lk14}"
+    );
+    for png in ["speed_error.png", "speed_error_lk14.png", "speed_error_lk14_map.png", "speed_error_lk14_height.png"] {
         let image = image::open(dir.join(png)).unwrap_or_else(|e| panic!("{png}: {e}"));
         assert_eq!(image.width(), 1000, "{png}");
         // Text and data are drawn: some pixels are dark.
