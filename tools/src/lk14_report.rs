@@ -34,7 +34,10 @@ pub struct Lk14Row {
     pub series: String,
     pub setting: String,
     pub mean_vertices: f64,
+    /// The median of `times`.
     pub ms_per_frame: f64,
+    /// Wall time per frame (ms), one per round.
+    pub times: Vec<f64>,
     pub newton_iterations: u32,
     /// Frames whose Newton solve stopped at its iteration limit (their state is kept).
     pub unconverged_frames: u32,
@@ -267,16 +270,25 @@ impl WavelengthTerm {
     }
 }
 
-/// Runs the sweeps of `cases` (indices into case 10, case 11, pinch; empty: all), every shell
-/// bending with `element`; `quick` keeps the coarsest settings of each series (`Case::quick`) and
-/// two frames.
-pub fn speed_error(
-    out: &Path,
-    quick: bool,
-    element: BendingElement,
-    cases: &[usize],
-    wavelength_term: WavelengthTerm,
-) -> Result<Vec<Lk14Row>, Box<dyn std::error::Error>> {
+/// What `speed_error` sweeps.
+#[derive(Clone, Debug)]
+pub struct Sweep {
+    /// The coarsest settings of each series (`Case::quick`) and two frames.
+    pub quick: bool,
+    /// Every shell's bending element.
+    pub element: BendingElement,
+    /// Indices into `CASES` (case 10, case 11, pinch, localized); empty: all.
+    pub cases: Vec<usize>,
+    pub wavelength_term: WavelengthTerm,
+    /// Rounds of each case's runs, every run once per round in turn, so that uniform and
+    /// adaptive runs alternate in one window (the machine drifts between hours); each run's time
+    /// is its median over the rounds. At least 1.
+    pub rounds: u32,
+}
+
+/// Runs the sweeps of `sweep.cases`.
+pub fn speed_error(out: &Path, sweep: &Sweep) -> Result<Vec<Lk14Row>, Box<dyn std::error::Error>> {
+    let Sweep { quick, element, ref cases, wavelength_term, rounds } = *sweep;
     std::fs::create_dir_all(out)?;
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/lk14");
     let mut rows = Vec::new();
@@ -284,11 +296,12 @@ pub fn speed_error(
         let text = smooth_perturbation(&std::fs::read_to_string(dir.join(case.scene))?, case);
         let text = with_iteration_cap(&with_element(&text, element), ITERATION_CAP);
         let take = |n: usize| if quick { n.min(case.quick) } else { n };
-        let mut series: Vec<Lk14Row> = Vec::new();
+        let (mut series, mut texts): (Vec<Lk14Row>, Vec<String>) = (Vec::new(), Vec::new());
         for &(nx, ny) in case.uniform.iter().take(take(case.uniform.len())) {
             let scene_text = mesh_line(&text, case.mesh, nx, ny, "");
             keep_scene(out, CASE_KEYS[ci], series.len(), "uniform", &scene_text)?;
             series.push(run(case, &scene_text, &dir, "uniform", format!("{nx} x {ny} cells"), quick)?);
+            texts.push(scene_text);
         }
         let term = wavelength_term.applies(ci);
         // (every setting without the term or without `ahead`; with both, the first setting at each
@@ -327,7 +340,22 @@ pub fn speed_error(
             let setting = format!("angle {angle}, size {lo} .. {hi} mm, c {c} mm, every {every}{by_wavelength}");
             keep_scene(out, CASE_KEYS[ci], series.len(), "adaptive", &scene_text)?;
             series.push(run(case, &scene_text, &dir, "adaptive", setting, quick)?);
+            texts.push(scene_text);
         }
+        // Later rounds: every run of the case again, in the same order, timed only.
+        for _ in 1..rounds.max(1) {
+            for (r, t) in series.iter_mut().zip(&texts) {
+                r.times.push(time_run(case, t, &dir, quick)?);
+                eprintln!(
+                    "{}: {}: {:.0} ms/frame (round {})",
+                    r.series,
+                    r.setting,
+                    r.times.last().unwrap_or(&0.0),
+                    r.times.len()
+                );
+            }
+        }
+        series.iter_mut().for_each(|r| r.ms_per_frame = median(&r.times));
         // The reference: the finest uniform run.
         let finest = take(case.uniform.len()) - 1;
         series[finest].reference = true;
@@ -368,7 +396,7 @@ pub fn speed_error(
         }
         rows.extend(series);
     }
-    write(out, &rows, element, wavelength_term, cases)?;
+    write(out, &rows, element, wavelength_term, cases, rounds.max(1))?;
     plots(&out.join("speed_error_lk14"), &rows)?;
     Ok(rows)
 }
@@ -514,6 +542,7 @@ fn run(
         setting,
         mean_vertices: vertices / frames,
         ms_per_frame,
+        times: vec![ms_per_frame],
         newton_iterations: iterations,
         unconverged_frames: unconverged,
         wavelength_error,
@@ -537,6 +566,37 @@ fn run(
     };
     eprintln!("{}: {}: {:.0} ms/frame, {:.0} vertices", row.series, row.setting, row.ms_per_frame, row.mean_vertices);
     Ok(row)
+}
+
+/// A later round's run: its frames as `run` steps them, timed the same way, nothing else
+/// measured (ms per frame).
+fn time_run(case: &Case, text: &str, dir: &Path, quick: bool) -> Result<f64, Box<dyn std::error::Error>> {
+    let mut built = scene::load_str(text, &dir.join(case.scene))?;
+    if quick {
+        built.scene.frames = 2;
+    }
+    let mut sim = Simulation::new(&built);
+    let mut seconds = 0.0;
+    for _ in 0..built.scene.frames {
+        let clock = std::time::Instant::now();
+        sim.step();
+        seconds += clock.elapsed().as_secs_f64();
+        if let Some(f) = sim.failure() {
+            return Err(f.into());
+        }
+    }
+    Ok(1e3 * seconds / f64::from(built.scene.frames))
+}
+
+/// The median (the mean of the middle two of an even count).
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }
 
 /// Remesh, settle and resampling time against the frames' (`FrameStats` timings).
@@ -723,6 +783,7 @@ fn write(
     element: BendingElement,
     term: WavelengthTerm,
     cases: &[usize],
+    rounds: u32,
 ) -> std::io::Result<()> {
     let flag = if element == BendingElement::Hinge { "hinge" } else { "quadratic" };
     let mut without = term.flag().to_string();
@@ -730,6 +791,15 @@ fn write(
         let names: Vec<&str> = cases.iter().map(|&c| CASE_FLAGS[c]).collect();
         without.push_str(&format!(" --cases {}", names.join(",")));
     }
+    let timed = if rounds > 1 {
+        without.push_str(&format!(" --rounds {rounds}"));
+        format!(
+            "the median of {rounds} rounds, each running every run of the case once in turn (so that \
+             uniform and adaptive runs alternate in one window), the rounds' least and most in brackets"
+        )
+    } else {
+        "one run (`--rounds N`: the median of N rounds that alternate the runs)".to_string()
+    };
     let mut md = format!(
         "# Speed against error, LK14 (VALIDATION.md F, issue 5)\n\n\
          Regenerate: `cargo run --release --bin skinsim -- report --only lk14 --bending {flag}{without} --out \
@@ -752,7 +822,7 @@ fn write(
          edges (VALIDATION.md case 5), and the adaptive case-10 runs 11-13 % too little bending energy; the \
          Quadratic element is within 1 % on that mesh. Newton iterations: the run's total, its cap raised to \
          {ITERATION_CAP} per frame so that every frame converges. Vertices: the swept layer's, mean over the \
-         frames. Time: wall per frame on this machine, one run. Map error (issue 26): the mean angle between \
+         frames. Time: wall per frame on this machine, {timed}. Map error (issue 26): the mean angle between \
          the normals of the run's and the reference's wrinkle maps ({MAP_SIZE} pixels square over the material \
          rectangle), pixel by pixel, before the maps' 8-bit encoding (its steps, up to half a degree, would \
          hide finer differences). Height error: the RMS of the height difference to the reference on the \
@@ -795,7 +865,8 @@ fn write(
          wavelength_error,energy_error,time_ratio_energy,energy_ratio_is_upper_bound,remeshes,\
          iterations_per_remesh_held,held_remeshes_changed,held_iterations_without_remesh,\
          iterations_per_remesh_settled,held_frames_after,held_iterations_after,map_error_deg,time_ratio_map,map_ratio_is_upper_bound,height_error,\
-         held_iterations_each,time_ratio_height,height_ratio_is_upper_bound,remesh_share,remesh_share_largest_frame\n",
+         held_iterations_each,time_ratio_height,height_ratio_is_upper_bound,remesh_share,remesh_share_largest_frame,\
+         rounds,ms_per_frame_least,ms_per_frame_most\n",
     );
     for r in rows {
         let show = |t: Option<(f64, bool)>| match t {
@@ -821,20 +892,25 @@ fn write(
         } else {
             format!("{:+.2} %", 100.0 * r.wavelength_error)
         };
+        let (least, most) = r.times.iter().fold((f64::INFINITY, 0.0f64), |(a, b), t| (a.min(*t), b.max(*t)));
+        let time = if r.times.len() > 1 {
+            format!("{:.0} ({least:.0}-{most:.0})", r.ms_per_frame)
+        } else {
+            format!("{:.0}", r.ms_per_frame)
+        };
         let iterations = match r.unconverged_frames {
             0 => r.newton_iterations.to_string(),
             n => format!("{} ({n} frame(s) at the iteration limit)", r.newton_iterations),
         };
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.0} | {iterations} | {} | {:.1} %; {:.1} % | {per_remesh} | {:.2} | {ratio_map} | {:.3} \
+            "| {} | {} | {:.0} | {time} | {iterations} | {} | {:.1} %; {:.1} % | {per_remesh} | {:.2} | {ratio_map} | {:.3} \
              | {ratio_height} \
              | {:.3} | {ratio} \
              | {wavelength} | {:+.3} % | {ratio_energy} |",
             r.series,
             r.setting,
             r.mean_vertices,
-            r.ms_per_frame,
             r.remeshes,
             100.0 * r.remesh_share.mean(),
             100.0 * r.remesh_share.largest,
@@ -845,7 +921,7 @@ fn write(
         );
         let _ = writeln!(
             csv,
-            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6},{},{},{},{:.5},{:.5}",
+            "{},{},{:.1},{:.3},{},{:.6},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.4},{},{},{:.6},{},{},{},{:.5},{:.5},{},{:.3},{:.3}",
             csv_text(&r.series),
             csv_text(&r.setting),
             r.mean_vertices,
@@ -874,6 +950,9 @@ fn write(
             r.time_ratio_height.is_some_and(|t| t.1),
             r.remesh_share.mean(),
             r.remesh_share.largest,
+            r.times.len(),
+            least,
+            most,
         );
     }
     if let Some(s) = HeldSummary::over(rows.iter().filter_map(|r| r.held.as_ref())) {
@@ -958,6 +1037,13 @@ fn plot(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_runs_time_is_the_median_of_its_rounds() {
+        assert_eq!(median(&[3.0]), 3.0);
+        assert_eq!(median(&[5.0, 1.0, 4.0]), 4.0);
+        assert_eq!(median(&[5.0, 1.0, 4.0, 2.0]), 3.0);
+    }
 
     #[test]
     fn the_remesh_share_sums_the_remesh_stages_over_the_frames_and_keeps_the_largest_frame() {

@@ -108,6 +108,10 @@ enum Command {
         /// compression only, as before).
         #[arg(long, value_enum, default_value = "default")]
         wavelength_term: WavelengthTermArg,
+        /// LK14 sweeps: rounds of each case's runs, every run once per round in turn (uniform
+        /// and adaptive alternate in one window); each run's time is its median.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        rounds: u32,
     },
     /// Write a procedural asset of the character scenes (scenes/character): `hand`, a hand-like
     /// body (arm, palm, two fingers) as an OBJ with UVs, lengths in mm.
@@ -262,7 +266,7 @@ fn main() -> ExitCode {
         Command::Check { scene } => check(&scene),
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
-        Command::Report { out, quick, only, bending, cases, wavelength_term } => {
+        Command::Report { out, quick, only, bending, cases, wavelength_term, rounds } => {
             let element = match bending {
                 BendingArg::Hinge => skinsim::physics::BendingElement::Hinge,
                 BendingArg::Quadratic => skinsim::physics::BendingElement::Quadratic,
@@ -273,7 +277,8 @@ fn main() -> ExitCode {
                 WavelengthTermArg::All => skinsim_tools::lk14_report::WavelengthTerm::All,
                 WavelengthTermArg::Off => skinsim_tools::lk14_report::WavelengthTerm::Off,
             };
-            report(&out, quick, only, element, &cases, term)
+            let sweep = skinsim_tools::lk14_report::Sweep { quick, element, cases, wavelength_term: term, rounds };
+            report(&out, only, &sweep)
         }
         Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
         Command::Bake { scene, frames, weights, angles, size, out, layer, blend, layout } => {
@@ -709,21 +714,14 @@ fn timing(scenes: &[PathBuf], frames: Option<u32>, out: &Path) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-fn report(
-    out: &Path,
-    quick: bool,
-    only: Sweeps,
-    element: skinsim::physics::BendingElement,
-    cases: &[usize],
-    wavelength_term: skinsim_tools::lk14_report::WavelengthTerm,
-) -> ExitCode {
+fn report(out: &Path, only: Sweeps, sweep: &skinsim_tools::lk14_report::Sweep) -> ExitCode {
     let result = (|| -> Result<(), Box<dyn std::error::Error>> {
         if only != Sweeps::Lk14 {
-            let rows = skinsim_tools::report::speed_error(out, quick)?;
+            let rows = skinsim_tools::report::speed_error(out, sweep.quick)?;
             println!("{} runs; wrote {}", rows.len(), out.join("speed_error.md").display());
         }
         if only != Sweeps::H15 {
-            let rows = skinsim_tools::lk14_report::speed_error(out, quick, element, cases, wavelength_term)?;
+            let rows = skinsim_tools::lk14_report::speed_error(out, sweep)?;
             println!("{} runs; wrote {}", rows.len(), out.join("speed_error_lk14.md").display());
         }
         Ok(())

@@ -438,12 +438,18 @@ fn report_sweeps_one_lk14_case_with_the_quadratic_element() {
     let ahead = |r: &String, n: u32| r.contains(&format!("lambda / {n} ahead, held"));
     let rows = adaptive(&lk14);
     assert!(rows.len() == 2 && ahead(&rows[0], 6) && ahead(&rows[1], 8), "{lk14}");
-    let out = skinsim().args(args).arg(&dir).args(["--wavelength-term", "off"]).output().unwrap();
+    // (two rounds: each run's time the median of two, the runs alternating)
+    let out = skinsim().args(args).arg(&dir).args(["--wavelength-term", "off", "--rounds", "2"]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let without = std::fs::read_to_string(dir.join("speed_error_lk14.md")).unwrap();
-    assert!(without.contains("--bending quadratic --wavelength-term off"), "{without}");
+    assert!(without.contains("--bending quadratic --wavelength-term off --cases 10 --rounds 2"), "{without}");
+    assert!(without.contains("the median of 2 rounds"), "{without}");
+    let csv = std::fs::read_to_string(dir.join("speed_error_lk14.csv")).unwrap();
+    assert!(csv.lines().skip(1).all(|l| l.rsplit(',').nth(2) == Some("2")), "the rounds column: {csv}");
     assert!(adaptive(&without).len() == 2 && adaptive(&without).iter().all(|r| !r.contains("lambda /")), "{without}");
     let bad = skinsim().args(["report", "--only", "lk14", "--cases", "12"]).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    let bad = skinsim().args(["report", "--only", "lk14", "--rounds", "0"]).output().unwrap();
     assert_eq!(bad.status.code(), Some(2));
 }
 
