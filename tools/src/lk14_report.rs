@@ -829,7 +829,8 @@ fn write(
          material grid, without its best affine fit (a rigid or affine drift of the sheet), over the reference's \
          RMS wrinkle height. Remeshes: frames whose remesh changed the layer's topology. Remesh share: \
          the remesh, the settle of its new vertices and the property and kernel resampling (with the \
-         kernels' adjust) over the timed frames' wall time, over the run and in its largest frame. \
+         kernels' adjust) over the timed frames' wall time (the first round's), over the run and in its largest \
+         frame. \
          Iterations per remesh: \
          after the run, frames with the load held (past the last keyframe) and no remesh until one takes no \
          Newton iteration (at most {SETTLE_FRAMES}; a frame that starts where the last one was accepted \
