@@ -46,6 +46,11 @@ pub fn kck18_figure(scene_name: &str) -> Option<(&'static str, u32, u32, f64)> {
     (scene_name == "creature").then_some(("KCK18 raccoon (N_v: triangles)", 0, 18929, 78.63))
 }
 
+/// The stages of t_R: the remesh and the settle of its new vertices.
+pub const T_R: [Stage; 2] = [Stage::Remesh, Stage::Settle];
+/// The stages of t_S: the property and kernel resampling, and the kernels' adjust.
+pub const T_S: [Stage; 3] = [Stage::PropertyResample, Stage::ConstraintResample, Stage::ConstraintAdjust];
+
 /// Runs `frames` frames (default: all) of a scene and averages the stage timings:
 /// t_c = assemble (element and kernel rows packed), t_I = motion (blend shapes) + solve + write-back,
 /// t_R = remesh + settle (the relaxation of its new vertices), t_S = property resample + kernel
@@ -78,8 +83,8 @@ pub fn time_scene(path: &Path, frames: Option<u32>) -> Result<TimingRow, String>
         row.newton_iterations += s.patches.iter().map(|p| p.newton_iterations as f64).sum::<f64>();
         row.t_c += ms(Stage::Assemble);
         row.t_i += ms(Stage::Motion) + ms(Stage::Solve) + ms(Stage::Writeback);
-        row.t_r += ms(Stage::Remesh) + ms(Stage::Settle);
-        row.t_s += ms(Stage::PropertyResample) + ms(Stage::ConstraintResample) + ms(Stage::ConstraintAdjust);
+        row.t_r += T_R.iter().map(|&k| ms(k)).sum::<f64>();
+        row.t_s += T_S.iter().map(|&k| ms(k)).sum::<f64>();
         row.t_w += ms(Stage::AnchorWalk);
         row.total += s.total_ms() / 1e3;
     }
