@@ -25,7 +25,7 @@ use skinsim_systems::{FrameStats, Simulation};
 use crate::field_error;
 use crate::plot::{LogLog, Point};
 use crate::report::csv_text;
-use crate::timing::{T_R, T_S};
+use crate::timing::{median, T_R, T_S};
 use crate::wrinkles::{resample_on_grid, row_peaks};
 
 /// One run of the sweep.
@@ -586,17 +586,6 @@ fn time_run(case: &Case, text: &str, dir: &Path, quick: bool) -> Result<f64, Box
         }
     }
     Ok(1e3 * seconds / f64::from(built.scene.frames))
-}
-
-/// The median (the mean of the middle two of an even count).
-fn median(values: &[f64]) -> f64 {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-    }
 }
 
 /// Remesh, settle and resampling time against the frames' (`FrameStats` timings).

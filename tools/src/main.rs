@@ -79,6 +79,11 @@ enum Command {
         /// Frames per scene (default: all of each scene's).
         #[arg(long)]
         frames: Option<u32>,
+        /// Rounds, every scene once per round in turn (scenes compared in one window
+        /// alternate); each figure is the median over the rounds, and the table adds each
+        /// scene's least and most total and its median over the first scene's.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        rounds: u32,
         #[arg(long, default_value = "report")]
         out: PathBuf,
     },
@@ -280,7 +285,7 @@ fn main() -> ExitCode {
             let sweep = skinsim_tools::lk14_report::Sweep { quick, element, cases, wavelength_term: term, rounds };
             report(&out, only, &sweep)
         }
-        Command::Timing { scenes, frames, out } => timing(&scenes, frames, &out),
+        Command::Timing { scenes, frames, rounds, out } => timing(&scenes, frames, rounds, &out),
         Command::Bake { scene, frames, weights, angles, size, out, layer, blend, layout } => {
             let layout = match layout {
                 LayoutArg::Material => MapLayout::Material,
@@ -688,23 +693,27 @@ fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
     }
 }
 
-fn timing(scenes: &[PathBuf], frames: Option<u32>, out: &Path) -> ExitCode {
+fn timing(scenes: &[PathBuf], frames: Option<u32>, rounds: u32, out: &Path) -> ExitCode {
     use skinsim_tools::timing;
     if scenes.is_empty() || frames == Some(0) {
         eprintln!("error: timing needs at least one scene and --frames of at least 1");
         return ExitCode::from(2);
     }
-    let mut rows = Vec::new();
+    // Every scene is checked before any runs: a typo in the last one must not waste the rounds.
     for path in scenes {
-        eprintln!("timing {} ...", path.display());
-        match timing::time_scene(path, frames) {
-            Ok(r) => rows.push(r),
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::from(2);
-            }
+        if let Err(code) = load(path) {
+            return code;
         }
     }
+    let paths: Vec<&Path> = scenes.iter().map(PathBuf::as_path).collect();
+    let rows = match timing::time_rounds(&paths, frames, rounds) {
+        Ok(rows) => rows,
+        Err(e) => {
+            // (every scene loaded above: what is left is a frame that failed)
+            eprintln!("error: {e}");
+            return ExitCode::from(1);
+        }
+    };
     let table = timing::markdown(&rows);
     print!("{table}");
     if std::fs::create_dir_all(out).and_then(|_| std::fs::write(out.join("timing.md"), &table)).is_err() {

@@ -24,6 +24,8 @@ pub struct TimingRow {
     pub t_w: f64,
     pub total: f64,
     pub newton_iterations: f64,
+    /// Each round's total (s/frame); `total` is their median (`rounds`).
+    pub totals: Vec<f64>,
 }
 
 /// LK14 table 6-1 (2.4 GHz Core i7, TAUCS): (their example, N_c, N_v, total s/frame) for the
@@ -71,6 +73,7 @@ pub fn time_scene(path: &Path, frames: Option<u32>) -> Result<TimingRow, String>
         t_w: 0.0,
         total: 0.0,
         newton_iterations: 0.0,
+        totals: Vec::new(),
     };
     for _ in 0..frames {
         let s = sim.step();
@@ -102,7 +105,57 @@ pub fn time_scene(path: &Path, frames: Option<u32>) -> Result<TimingRow, String>
     ] {
         *v /= n;
     }
+    row.totals = vec![row.total];
     Ok(row)
+}
+
+/// `rounds` rounds of every scene in turn (A, B, A, B, ...: the machine's speed drifts by up to
+/// 2x between hours, so runs compared in one window alternate); each scene's row is its rows'
+/// median, field by field (`median_rows`).
+pub fn time_rounds(paths: &[&Path], frames: Option<u32>, rounds: u32) -> Result<Vec<TimingRow>, String> {
+    let mut runs: Vec<Vec<TimingRow>> = vec![Vec::new(); paths.len()];
+    for round in 1..=rounds {
+        for (path, rows) in paths.iter().zip(&mut runs) {
+            if rounds > 1 {
+                eprintln!("timing {} (round {round} of {rounds}) ...", path.display());
+            } else {
+                eprintln!("timing {} ...", path.display());
+            }
+            rows.push(time_scene(path, frames)?);
+        }
+    }
+    Ok(runs.iter().map(|rows| median_rows(rows)).collect())
+}
+
+/// One scene's rounds as one row: every field the median over the rounds, and every round's
+/// total kept in `totals`.
+pub fn median_rows(rows: &[TimingRow]) -> TimingRow {
+    let of = |field: fn(&TimingRow) -> f64| median(&rows.iter().map(field).collect::<Vec<_>>());
+    TimingRow {
+        scene: rows[0].scene.clone(),
+        frames: rows[0].frames,
+        kernels: of(|r| r.kernels),
+        vertices: of(|r| r.vertices),
+        t_c: of(|r| r.t_c),
+        t_i: of(|r| r.t_i),
+        t_r: of(|r| r.t_r),
+        t_s: of(|r| r.t_s),
+        t_w: of(|r| r.t_w),
+        total: of(|r| r.total),
+        newton_iterations: of(|r| r.newton_iterations),
+        totals: rows.iter().map(|r| r.total).collect(),
+    }
+}
+
+/// The median (the mean of the middle two of an even count).
+pub fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }
 
 /// The markdown table, ours beside LK14's.
@@ -135,5 +188,63 @@ pub fn markdown(rows: &[TimingRow]) -> String {
             lk.map_or("-".into(), |l| format!("{:.0}x", l.3 / r.total.max(1e-9))),
         );
     }
+    let rounds = rows.first().map_or(0, |r| r.totals.len());
+    if rounds > 1 {
+        let _ = write!(
+            out,
+            "\nTotals over {rounds} rounds, every scene once per round in turn (each column above: the \
+             median over the rounds), and each scene's median over the first's:\n\n\
+             | scene | total (s/frame), median | least | most | over {} |\n|---|---|---|---|---|\n",
+            rows[0].scene
+        );
+        for r in rows {
+            let fold = |f: fn(f64, f64) -> f64, init| r.totals.iter().copied().fold(init, f);
+            let _ = writeln!(
+                out,
+                "| {} | {:.3} | {:.3} | {:.3} | {:.3} |",
+                r.scene,
+                r.total,
+                fold(f64::min, f64::INFINITY),
+                fold(f64::max, f64::NEG_INFINITY),
+                r.total / rows[0].total.max(1e-12),
+            );
+        }
+    }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(scene: &str, total: f64, t_i: f64) -> TimingRow {
+        TimingRow {
+            scene: scene.into(),
+            frames: 2,
+            kernels: 10.0,
+            vertices: 100.0,
+            t_c: 0.1,
+            t_i,
+            t_r: 0.0,
+            t_s: 0.0,
+            t_w: 0.0,
+            total,
+            newton_iterations: 3.0,
+            totals: vec![total],
+        }
+    }
+
+    #[test]
+    fn a_scenes_rounds_give_their_medians_and_the_table_their_spread_and_ratio() {
+        let a = median_rows(&[row("a", 4.0, 3.0), row("a", 2.0, 1.0), row("a", 3.0, 2.0)]);
+        assert_eq!((a.total, a.t_i, a.totals.clone()), (3.0, 2.0, vec![4.0, 2.0, 3.0]));
+        let b = median_rows(&[row("b", 1.0, 0.5), row("b", 2.0, 1.5), row("b", 1.5, 1.0)]);
+        assert_eq!((b.total, b.t_i), (1.5, 1.0));
+        let table = markdown(&[a.clone(), b]);
+        assert!(table.contains("Totals over 3 rounds"), "{table}");
+        assert!(table.contains("| a | 3.000 | 2.000 | 4.000 | 1.000 |"), "{table}");
+        assert!(table.contains("| b | 1.500 | 1.000 | 2.000 | 0.500 |"), "{table}");
+        let one = markdown(&[median_rows(&[row("a", 4.0, 3.0)])]);
+        assert!(!one.contains("rounds"), "one round: the table alone\n{one}");
+    }
 }

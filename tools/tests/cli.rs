@@ -342,6 +342,46 @@ fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
 }
 
 #[test]
+fn timing_alternates_its_scenes_over_rounds_and_checks_them_all_first() {
+    let d = scratch("timing");
+    let (a, b) = (write(&d, "a.ron", &scene("10.0", 4)), write(&d, "b.ron", &scene("20.0", 4)));
+    let mut timing = skinsim();
+    timing.args(["timing", "--frames", "2", "--rounds", "3", "--out"]).arg(d.join("rep")).arg(&a).arg(&b);
+    let out = timing.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    // A, B, A, B, A, B: the rounds alternate the scenes.
+    let order: Vec<&str> = err.lines().filter(|l| l.starts_with("timing ")).collect();
+    assert_eq!(order.len(), 6, "{err}");
+    assert!(order[0].contains("a.ron (round 1 of 3)") && order[1].contains("b.ron (round 1 of 3)"), "{err}");
+    assert!(order[4].contains("a.ron (round 3 of 3)") && order[5].contains("b.ron (round 3 of 3)"), "{err}");
+    let table = std::fs::read_to_string(d.join("rep/timing.md")).unwrap();
+    assert!(table.contains("Totals over 3 rounds"), "{table}");
+    let ratio = |scene: &str| -> f64 {
+        let row = table.lines().rfind(|l| l.starts_with(&format!("| {scene} | "))).unwrap();
+        row.split('|').map(str::trim).rfind(|c| !c.is_empty()).unwrap().parse().unwrap()
+    };
+    assert_eq!(ratio("a"), 1.0, "{table}");
+    assert!(ratio("b") > 0.0, "{table}");
+    // A bad last scene is refused before any scene runs; a failing frame exits 1.
+    let bad = write(&d, "bad.ron", "Scene(name: \"x\", frames: 2, patches: [Patch(nme: 1)])");
+    let out =
+        skinsim().args(["timing", "--rounds", "2", "--out"]).arg(d.join("rep2")).arg(&a).arg(&bad).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("bad.ron") && !err.contains("timing "), "{err}");
+    let failing = write(
+        &d,
+        "f.ron",
+        &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"),
+    );
+    let out = skinsim().args(["timing", "--out"]).arg(d.join("rep3")).arg(&failing).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("frame 3") && !err.contains("panicked"), "{err}");
+}
+
+#[test]
 fn analyze_reports_wavelength_and_amplitude_of_exported_frames() {
     let d = scratch("analyze");
     let s = write(&d, "s.ron", &scene("10.0", 4));

@@ -198,6 +198,7 @@ fn command_line_values_out_of_range_exit_2() {
     refused(&run(&["--frames", "0"]), &["--frames"]);
     refused(&run(&["--threads", "100000000"]), &["--threads"]);
     refused(&skinsim().arg("timing").output().unwrap(), &["at least one scene"]);
+    refused(&skinsim().args(["timing", "--rounds", "0"]).arg(&path).output().unwrap(), &["--rounds"]);
     let bake = |extra: &[&str]| {
         skinsim().arg("bake").arg(&path).args(["--out"]).arg(d.join("maps")).args(extra).output().unwrap()
     };
