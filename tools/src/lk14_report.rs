@@ -25,7 +25,7 @@ use skinsim_systems::{FrameStats, Simulation};
 use crate::field_error;
 use crate::plot::{LogLog, Point};
 use crate::report::csv_text;
-use crate::timing::{median, T_R, T_S};
+use crate::timing::{least_most, median, T_R, T_S};
 use crate::wrinkles::{resample_on_grid, row_peaks};
 
 /// One run of the sweep.
@@ -879,7 +879,7 @@ fn write(
         } else {
             format!("{:+.2} %", 100.0 * r.wavelength_error)
         };
-        let (least, most) = r.times.iter().fold((f64::INFINITY, 0.0f64), |(a, b), t| (a.min(*t), b.max(*t)));
+        let (least, most) = least_most(&r.times);
         let time = if r.times.len() > 1 {
             format!("{:.0} ({least:.0}-{most:.0})", r.ms_per_frame)
         } else {

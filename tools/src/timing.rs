@@ -158,6 +158,11 @@ pub fn median(values: &[f64]) -> f64 {
     }
 }
 
+/// The least and the most of `values` (times: never negative).
+pub fn least_most(values: &[f64]) -> (f64, f64) {
+    values.iter().fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(*v), b.max(*v)))
+}
+
 /// The markdown table, ours beside LK14's.
 pub fn markdown(rows: &[TimingRow]) -> String {
     let mut out = String::from(
@@ -198,14 +203,12 @@ pub fn markdown(rows: &[TimingRow]) -> String {
             rows[0].scene
         );
         for r in rows {
-            let fold = |f: fn(f64, f64) -> f64, init| r.totals.iter().copied().fold(init, f);
+            let (least, most) = least_most(&r.totals);
             let _ = writeln!(
                 out,
-                "| {} | {:.3} | {:.3} | {:.3} | {:.3} |",
+                "| {} | {:.3} | {least:.3} | {most:.3} | {:.3} |",
                 r.scene,
                 r.total,
-                fold(f64::min, f64::INFINITY),
-                fold(f64::max, f64::NEG_INFINITY),
                 r.total / rows[0].total.max(1e-12),
             );
         }
