@@ -21,16 +21,16 @@ pub fn apply_motions(
     for (motion, patch_layers) in &patches {
         for &layer in patch_layers.entities() {
             let Ok((_, verts)) = layers.get(layer) else { continue };
-            let acting: Vec<_> = motion.motions.iter().filter(|m| m.layers.contains(&layer)).collect();
+            // (embedded layers move in `carry_embedded`, once every body has)
+            let embedded = |m: &&Motion| matches!(m.kind, MotionKind::Embed { .. });
+            let acting: Vec<_> = motion.motions.iter().filter(|m| m.layers.contains(&layer) && !embedded(m)).collect();
             if acting.is_empty() {
                 continue;
             }
+            let posed = LayerPoses::new(&acting, frame);
             for (i, &v) in verts.entities().iter().enumerate() {
                 let Ok((rest, fixed, mut pos)) = vertices.get_mut(v) else { continue };
-                let mut target = rest.0;
-                for m in &acting {
-                    target = m.apply(i, target, motion.centre, frame);
-                }
+                let target = posed.apply(&acting, i, rest.0, motion.centre, frame);
                 let mut p = pos.0;
                 for k in 0..3 {
                     if fixed.0[k] {
@@ -51,6 +51,30 @@ pub fn apply_motions(
                 }
                 if p != pos.0 {
                     pos.0 = p;
+                }
+            }
+        }
+    }
+}
+
+/// Embedded layers (issue 62) follow their bodies, after every body has moved: each vertex the
+/// fixed stencil of the body's current positions.
+pub fn carry_embedded(patches: Query<&PatchMotion>, layers: Query<&LayerVertices>, mut vertices: Query<&mut Position>) {
+    for motion in &patches {
+        for m in &motion.motions {
+            let MotionKind::Embed { embedding, .. } = &m.kind else { continue };
+            let Ok(base) = layers.get(embedding.base) else { continue };
+            let body: Vec<_> =
+                base.entities().iter().map(|&v| vertices.get(v).map_or(Default::default(), |p| p.0)).collect();
+            let carried = embedding.positions(&body);
+            for &layer in &m.layers {
+                let Ok(verts) = layers.get(layer) else { continue };
+                for (&v, p) in verts.entities().iter().zip(&carried) {
+                    if let Ok(mut pos) = vertices.get_mut(v) {
+                        if pos.0 != *p {
+                            pos.0 = *p;
+                        }
+                    }
                 }
             }
         }

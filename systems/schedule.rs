@@ -37,7 +37,8 @@ pub fn build_schedule() -> Schedule {
         )
             .chain(),
     );
-    s.add_systems(timed(Stage::Motion, motion::apply_motions));
+    // Bodies first, then the layers embedded in them.
+    s.add_systems(timed(Stage::Motion, (motion::apply_motions, motion::carry_embedded).chain()));
     s.add_systems(timed(Stage::Remesh, remesh::remesh_layers));
     s.add_systems(timed(Stage::PropertyResample, properties::resample_properties));
     s.add_systems(timed(Stage::ConstraintResample, kernels::resample_kernels));

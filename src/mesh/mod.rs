@@ -8,10 +8,13 @@ pub mod imperfection;
 pub mod locate;
 pub mod obj;
 pub mod remesh;
+pub mod rig;
 pub mod select;
 pub mod shading;
+pub mod subdivision;
 pub mod topology;
 pub mod usd;
+pub mod uv_islands;
 pub mod wrinkle_map;
 
 pub use bounds::bounds;

@@ -13,11 +13,13 @@ mod maps;
 mod motion;
 mod resources;
 mod rest;
+mod rig;
 pub use anchors::*;
 pub use maps::*;
 pub use motion::*;
 pub use resources::*;
 pub use rest::*;
+pub use rig::*;
 
 // ---------------------------------------------------------------- patches and layers
 

@@ -53,6 +53,13 @@ pub enum MotionKind {
     /// Per frame from `start` (the last frame holds after): displacements from rest (KCK18
     /// bodies: articulated poses, OBJ sequences).
     Sequence { frames: Vec<Vec<DVec3>>, start: u32 },
+    /// A glTF body posed by its rig (issue 62): every position at once (`Motion::layer_pose`),
+    /// whatever the motions before it did.
+    Rig(std::sync::Arc<super::rig::RigMotion>),
+    /// A layer embedded in a body (issue 62): written after every body has moved, from the
+    /// body's positions (`systems/motion.rs`); `carriers` are the body's motions, which say
+    /// whether its load holds.
+    Embed { embedding: std::sync::Arc<super::rig::Embedding>, carriers: Vec<Motion> },
 }
 
 /// A hinge joint (issue 24): points turn about the line through `pivot` along `axis` (unit) by
@@ -123,6 +130,17 @@ impl Motion {
                 let w = b.weights(frame);
                 p + b.targets.iter().zip(w).map(|((d, _), w)| w * d[index]).sum::<DVec3>()
             }
+            // Whole-layer motions: `layer_pose` and the Motion stage's embedding pass.
+            MotionKind::Rig(_) | MotionKind::Embed { .. } => p,
+        }
+    }
+
+    /// The positions of every vertex of its layer at `frame`, for motions that pose a layer as
+    /// a whole (a rig); None for the per-point maps of `apply`.
+    pub fn layer_pose(&self, frame: f64) -> Option<Vec<DVec3>> {
+        match &self.kind {
+            MotionKind::Rig(r) => Some(r.positions(frame)),
+            _ => None,
         }
     }
 
@@ -136,6 +154,8 @@ impl Motion {
             MotionKind::Sequence { frames, start } => {
                 sequence_index(frames.len(), *start, frame) == sequence_index(frames.len(), *start, before)
             }
+            MotionKind::Rig(r) => r.holds_at(frame),
+            MotionKind::Embed { carriers, .. } => carriers.iter().all(|m| m.holds_at(frame)),
             _ => {
                 same(self.keyframes.at(frame, Interpolation::Linear), self.keyframes.at(before, Interpolation::Linear))
             }
@@ -155,6 +175,8 @@ pub fn keyframes_after(motions: &[&Motion], frame: u32) -> Vec<u32> {
         .iter()
         .flat_map(|m| match &m.kind {
             MotionKind::Blend(b) => b.targets.iter().flat_map(|(_, k)| k.0.iter().map(|k| k.0)).collect(),
+            MotionKind::Rig(r) => r.key_frames(),
+            MotionKind::Embed { carriers, .. } => keyframes_after(&carriers.iter().collect::<Vec<_>>(), frame),
             _ => m.keyframes.0.iter().map(|k| k.0).collect::<Vec<_>>(),
         })
         .filter(|&k| k > frame)
@@ -166,7 +188,27 @@ pub fn keyframes_after(motions: &[&Motion], frame: u32) -> Vec<u32> {
 
 /// `rest` moved by each of `motions` in turn at `frame`, about `centre`.
 pub fn pose_at(motions: &[&Motion], rest: &[DVec3], centre: DVec3, frame: f64) -> Vec<DVec3> {
-    rest.iter().enumerate().map(|(i, &p)| motions.iter().fold(p, |q, m| m.apply(i, q, centre, frame))).collect()
+    let posed = LayerPoses::new(motions, frame);
+    rest.iter().enumerate().map(|(i, &p)| posed.apply(motions, i, p, centre, frame)).collect()
+}
+
+/// The whole-layer poses (`Motion::layer_pose`) of a layer's motions at one frame, evaluated once
+/// for all its vertices.
+pub struct LayerPoses(Vec<Option<Vec<DVec3>>>);
+
+impl LayerPoses {
+    pub fn new(motions: &[&Motion], frame: f64) -> Self {
+        LayerPoses(motions.iter().map(|m| m.layer_pose(frame)).collect())
+    }
+
+    /// Vertex `index` at rest position `p` moved by each of `motions` in turn (a whole-layer pose
+    /// replaces what the motions before it did).
+    pub fn apply(&self, motions: &[&Motion], index: usize, p: DVec3, centre: DVec3, frame: f64) -> DVec3 {
+        motions.iter().zip(&self.0).fold(p, |q, (m, posed)| match posed {
+            Some(v) => v[index],
+            None => m.apply(index, q, centre, frame),
+        })
+    }
 }
 
 /// The motions that drive a patch's prescribed coordinates, and the centre they act about.

@@ -62,7 +62,14 @@ pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
         SceneError { file: path.to_path_buf(), position: Some((line, col)), field: None, message }
     })?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    Builder { file: path.to_path_buf(), dir, memory: Default::default() }.build(scene)
+    let builder = Builder {
+        file: path.to_path_buf(),
+        dir,
+        memory: Default::default(),
+        budget: Default::default(),
+        notes: Default::default(),
+    };
+    builder.build(scene)
 }
 
 /// What a bare RON syntax error most likely means, from the text around its 1-based position:
@@ -93,11 +100,20 @@ pub(super) struct Builder {
     pub(super) dir: PathBuf,
     /// The memory the layers built so far need to run (bytes, estimated: `meshes.rs`).
     pub(super) memory: std::cell::Cell<f64>,
+    /// The scene's stated memory budget (bytes), if any.
+    pub(super) budget: std::cell::Cell<Option<f64>>,
+    /// What `check` and `run` tell the user beyond errors (`BuiltScene::notes`).
+    pub(super) notes: std::cell::RefCell<Vec<String>>,
 }
 
 impl Builder {
     pub(super) fn err(&self, field: impl Into<String>, message: impl Into<String>) -> SceneError {
         SceneError::at_field(&self.file, field, message)
+    }
+
+    /// A line for the user: an estimate, a measured distortion, input fixed with a warning.
+    pub(super) fn note(&self, line: String) {
+        self.notes.borrow_mut().push(line);
     }
 
     fn build(&self, scene: Scene) -> Result<BuiltScene, SceneError> {
@@ -119,6 +135,12 @@ impl Builder {
             ));
         }
         self.check_name("name", &scene.name)?;
+        if let Some(gb) = scene.memory {
+            if !(gb > 0.0 && gb.is_finite()) {
+                return Err(self.err("memory", format!("must be a positive number of GB (got {gb})")));
+            }
+            self.budget.set(Some(gb * 1e9));
+        }
         // Bodies and patches name output folders side by side: one name each.
         let mut names = HashMap::new();
         let mut bodies = Vec::new();
@@ -140,7 +162,7 @@ impl Builder {
             }
             patches.push(self.patch(&scene, pi, p, &bodies)?);
         }
-        Ok(BuiltScene { path: self.file.clone(), scene, bodies, patches })
+        Ok(BuiltScene { path: self.file.clone(), scene, bodies, patches, notes: self.notes.take() })
     }
 
     /// A shared body: one kinematic layer named as the body, and the drivers that move it.
@@ -160,7 +182,7 @@ impl Builder {
             remesh: None,
         };
         let index = HashMap::from([(b.name.clone(), 0)]);
-        let layers = vec![self.layer(&at, &spec, len, stress, offset, &[], &index)?];
+        let layers = vec![self.layer(&at, &spec, len, stress, offset, &[], &index, None)?];
         let cx = PatchContext { scene, layers: &layers, index: &index, len, stress, offset };
         let mut drivers = Vec::new();
         for (di, d) in b.drivers.iter().enumerate() {
@@ -169,7 +191,7 @@ impl Builder {
             if !built.is_motion() {
                 return Err(self.err(
                     dat,
-                    "a body takes motions only (Joint, Bend, Compress, BlendShape, Sequence): the rest belongs to \
+                    "a body takes motions only (Rig, Joint, Bend, Compress, BlendShape, Sequence): the rest belongs to \
                      the patches on it",
                 ));
             }
@@ -299,6 +321,7 @@ impl Builder {
             }
         };
         let first = layers.len();
+        let lambdas = self.refine_wavelengths(p, len, stress);
         for (li, l) in p.layers.iter().enumerate() {
             let lat = format!("{at}.layers[{li}] (\"{}\")", l.name);
             self.check_name(format!("{lat}.name"), &l.name)?;
@@ -316,7 +339,7 @@ impl Builder {
                     m.model.get_or_insert(crate::physics::ConstitutiveModel::StableNeoHookean);
                 }
             }
-            layers.push(self.layer(&lat, &l, len, stress, offset, &layers, &index)?);
+            layers.push(self.layer(&lat, &l, len, stress, offset, &layers, &index, lambdas[li])?);
         }
         self.check_interfaces(&at, first, &layers)?;
         let cx = PatchContext { scene, layers: &layers, index: &index, len, stress, offset };

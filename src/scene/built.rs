@@ -18,6 +18,9 @@ pub struct BuiltScene {
     /// Shared kinematic bodies: one layer each, no solver.
     pub bodies: Vec<BuiltPatch>,
     pub patches: Vec<BuiltPatch>,
+    /// What the user should know that is not an error (issue 62: refined sizes and their memory,
+    /// UV islands' distortion, glTF weights normalised): `check` prints it, `run` too.
+    pub notes: Vec<String>,
 }
 
 #[derive(Clone, Debug)]
@@ -79,6 +82,35 @@ pub struct BuiltLayer {
     pub randomize: Option<(f64, u64)>,
     pub properties: Option<crate::model::LayerProperties>,
     pub remesh: Option<crate::model::RemeshSettings>,
+    /// A glTF body's asset (its rig, clips and UVs).
+    pub asset: Option<std::sync::Arc<BodyAsset>>,
+    /// A kinematic layer refined from a moving surface: carried by it.
+    pub embedding: Option<BuiltEmbedding>,
+}
+
+/// A glTF body (issue 62): the asset, its frame and its UV islands.
+#[derive(Clone, Debug)]
+pub struct BodyAsset {
+    pub asset: std::sync::Arc<crate::mesh::rig::Asset>,
+    pub path: PathBuf,
+    /// glTF to the engine's frame: a rotation, then a translation (m).
+    pub to_world: (glam::DQuat, DVec3),
+    /// Per UV island: its scale and distortion.
+    pub islands: Vec<crate::mesh::uv_islands::IslandReport>,
+    /// Per face of the welded surface, its UV island.
+    pub of_face: Vec<u32>,
+    /// Per face corner: the asset's UVs, and the length-true material coordinates (m); None for
+    /// an asset without UVs.
+    pub corner_uv: Option<(Vec<[DVec2; 3]>, Vec<[DVec2; 3]>)>,
+}
+
+/// A layer embedded in a surface of its patch (a body's layer 0 or an earlier kinematic layer):
+/// each vertex the stencil of that layer's vertices, moved `distance` along the normal.
+#[derive(Clone, Debug)]
+pub struct BuiltEmbedding {
+    pub base: usize,
+    pub stencils: Vec<crate::mesh::subdivision::Stencil>,
+    pub distance: f64,
 }
 
 impl LayerMesh {
@@ -120,7 +152,8 @@ impl BuiltDriver {
         match self {
             BuiltDriver::Pin { layer, .. }
             | BuiltDriver::BlendShape { layer, .. }
-            | BuiltDriver::Sequence { layer, .. } => vec![*layer],
+            | BuiltDriver::Sequence { layer, .. }
+            | BuiltDriver::Rig { layer, .. } => vec![*layer],
             BuiltDriver::Attach { layer, to, .. } => vec![*layer, *to],
             BuiltDriver::Compress { layers, .. }
             | BuiltDriver::Bend { layers, .. }
@@ -140,6 +173,7 @@ impl BuiltDriver {
                 | BuiltDriver::Joint { .. }
                 | BuiltDriver::BlendShape { .. }
                 | BuiltDriver::Sequence { .. }
+                | BuiltDriver::Rig { .. }
         )
     }
 }
@@ -205,6 +239,11 @@ pub enum BuiltDriver {
         layer: usize,
         frames: Vec<Vec<DVec3>>,
         start: u32,
+    },
+    /// A glTF body posed by its rig.
+    Rig {
+        layer: usize,
+        rig: std::sync::Arc<crate::model::RigMotion>,
     },
     Capture {
         layers: Vec<usize>,

@@ -198,6 +198,23 @@ impl Builder {
                 let frames = self.articulate(dat, pose, weights, *interpolation, &layers[li], len, scene.frames)?;
                 BuiltDriver::Sequence { layer: li, frames, start: 0 }
             }
+            DriverSpec::Rig { layer, clip, start, speed, joints, morphs, skinning, interpolation } => {
+                let li = find(format!("{dat}.layer"), layer)?;
+                let rig = self.rig_motion(
+                    dat,
+                    &layers[li],
+                    clip.as_deref(),
+                    *start,
+                    *speed,
+                    joints,
+                    morphs,
+                    *skinning,
+                    *interpolation,
+                    scene.frame_time,
+                    offset,
+                )?;
+                BuiltDriver::Rig { layer: li, rig: std::sync::Arc::new(rig) }
+            }
             DriverSpec::ObjSequence { layer, files, start } => {
                 let li = find(format!("{dat}.layer"), layer)?;
                 let frames = self.obj_sequence(dat, files, &layers[li], len, offset)?;

@@ -15,12 +15,12 @@ use crate::physics::cell::VolumeElement;
 use crate::physics::{plate_rigidity, BendingElement, Lame};
 
 /// A layer's material as stated or taken from its preset (scene units).
-struct Resolved {
-    model: crate::physics::ConstitutiveModel,
-    young: f64,
-    poisson: f64,
-    density: f64,
-    thickness: Option<f64>,
+pub(super) struct Resolved {
+    pub(super) model: crate::physics::ConstitutiveModel,
+    pub(super) young: f64,
+    pub(super) poisson: f64,
+    pub(super) density: f64,
+    pub(super) thickness: Option<f64>,
 }
 
 impl Builder {
@@ -34,8 +34,10 @@ impl Builder {
         offset: DVec3,
         earlier: &[BuiltLayer],
         index: &HashMap<String, usize>,
+        lambda: Option<f64>,
     ) -> Result<BuiltLayer, SceneError> {
-        let (mesh, shared, slab, groups) = self.mesh(at, l, len, offset, earlier, index)?;
+        let super::meshes::BuiltMesh { mesh, shared, slab, groups, asset, embedding } =
+            self.mesh(at, l, len, offset, earlier, index, lambda)?;
         let needs_material = l.kind != LayerKind::Kinematic;
         let (mut material, mut thickness) = (None, None);
         match (&l.material, needs_material) {
@@ -176,6 +178,8 @@ impl Builder {
             prestrain,
             randomize,
             properties,
+            asset,
+            embedding,
         })
     }
 
@@ -278,7 +282,13 @@ impl Builder {
 
     /// A material with its preset's values filled in where the scene states none (in the
     /// scene's units).
-    fn resolve_material(&self, at: &str, m: &MaterialSpec, len: f64, stress: f64) -> Result<Resolved, SceneError> {
+    pub(super) fn resolve_material(
+        &self,
+        at: &str,
+        m: &MaterialSpec,
+        len: f64,
+        stress: f64,
+    ) -> Result<Resolved, SceneError> {
         let preset = m.preset.map(|p| {
             let (e, nu, h) = p.si();
             (e / stress, nu, h / len)

@@ -13,8 +13,21 @@ use crate::mesh;
 use crate::mesh::obj::FaceGroups;
 use crate::model::LayerKind;
 
+/// A layer's mesh as built, with what comes with it.
+pub(super) struct BuiltMesh {
+    pub mesh: LayerMesh,
+    /// Per vertex: Some((layer, vertex)) where it is an earlier layer's.
+    pub shared: Vec<Option<(usize, u32)>>,
+    pub slab: Option<SlabGrid>,
+    pub groups: Option<FaceGroups>,
+    pub asset: Option<std::sync::Arc<super::built::BodyAsset>>,
+    pub embedding: Option<super::built::BuiltEmbedding>,
+}
+
 impl Builder {
-    #[allow(clippy::type_complexity)]
+    /// `lambda`: the smallest wavelength (m) of the couplings on the layer, for `refine:
+    /// Wavelength(n)`.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn mesh(
         &self,
         at: &str,
@@ -23,7 +36,8 @@ impl Builder {
         offset: DVec3,
         earlier: &[BuiltLayer],
         index: &HashMap<String, usize>,
-    ) -> Result<(LayerMesh, Vec<Option<(usize, u32)>>, Option<SlabGrid>, Option<FaceGroups>), SceneError> {
+        lambda: Option<f64>,
+    ) -> Result<BuiltMesh, SceneError> {
         let field = format!("{at}.mesh");
         let base_slab = |name: &str| -> Result<(usize, SlabGrid), SceneError> {
             let i = *index.get(name).ok_or_else(|| {
@@ -40,6 +54,7 @@ impl Builder {
         let mut shared = Vec::new();
         let mut slab = None;
         let mut groups = None;
+        let (mut asset, mut embedding) = (None, None);
         let positive = |v: f64, what: &str| -> Result<(), SceneError> {
             if v > 0.0 && v.is_finite() {
                 Ok(())
@@ -205,7 +220,34 @@ impl Builder {
                 }
                 LayerMesh::Surface(mesh::bodies::creature(radius * len, *subdivisions))
             }
-            MeshSpec::Offset { layer, distance, region } => {
+            MeshSpec::Gltf { path, mesh: name } => {
+                let (m, a) = self.gltf_body(&field, path, name.as_deref(), l.kind)?;
+                asset = Some(a);
+                LayerMesh::Surface(m)
+            }
+            MeshSpec::Offset { layer, distance, region, refine: Some(refine) } => {
+                self.surface_only(&field, l.kind)?;
+                if !distance.is_finite() {
+                    return Err(self.err(format!("{field}.distance"), "must be finite"));
+                }
+                let bi = *index
+                    .get(layer)
+                    .filter(|&&i| i < earlier.len())
+                    .ok_or_else(|| self.err(format!("{field}.layer"), format!("no earlier layer named \"{layer}\"")))?;
+                let base = &earlier[bi];
+                let LayerMesh::Surface(bm) = &base.mesh else {
+                    return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
+                };
+                let keep = match region {
+                    Some(r) => self.region(&format!("{field}.region"), r, bm, base, len)?,
+                    None => vec![true; bm.faces.len()],
+                };
+                let (mut m, e) = self.refined(&field, base, bi, &keep, distance * len, refine, lambda, len, l.kind)?;
+                embedding = e;
+                m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
+                LayerMesh::Surface(m)
+            }
+            MeshSpec::Offset { layer, distance, region, refine: None } => {
                 self.surface_only(&field, l.kind)?;
                 if !distance.is_finite() {
                     return Err(self.err(format!("{field}.distance"), "must be finite"));
@@ -235,6 +277,17 @@ impl Builder {
             }
         };
         self.charge_memory(&field, l.kind, mesh.rest().len() as u64)?;
+        // A kinematic copy of an embedded layer (an Offset of it, not refined again) is embedded
+        // too, farther along the normal; shells offset from it are free.
+        if embedding.is_none() && l.kind == LayerKind::Kinematic {
+            if let MeshSpec::Offset { layer, distance, refine: None, region: None } = &l.mesh {
+                let base = index.get(layer).and_then(|&i| earlier.get(i));
+                if let Some(e) = base.and_then(|b| b.embedding.as_ref()) {
+                    embedding =
+                        Some(super::built::BuiltEmbedding { distance: e.distance + distance * len, ..e.clone() });
+                }
+            }
+        }
         if shared.is_empty() {
             shared = vec![None; mesh.rest().len()];
         }
@@ -251,7 +304,7 @@ impl Builder {
                 *s = owner;
             }
         }
-        Ok((mesh, shared, slab, groups))
+        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding })
     }
 
     fn surface_only(&self, field: &str, kind: LayerKind) -> Result<(), SceneError> {
@@ -287,12 +340,13 @@ fn machine_memory() -> Option<f64> {
     Some(kb * 1024.0)
 }
 
-/// Why a scene's meshes would not fit in `limit` bytes, with `total` bytes estimated for them.
-pub(super) fn memory_error(vertices: u64, kind: LayerKind, total: f64, limit: f64) -> Option<String> {
+/// Why a scene's meshes would not fit in `limit` bytes (`whose`: "this machine's" memory or "the
+/// scene's" budget), with `total` bytes estimated for them.
+pub(super) fn memory_error(vertices: u64, kind: LayerKind, total: f64, limit: f64, whose: &str) -> Option<String> {
     (total > limit).then(|| {
         format!(
             "with these {vertices} vertices (a {} layer) the scene needs about {:.1} GB to run, more than \
-             this machine's {:.1} GB of memory",
+             {whose} {:.1} GB of memory",
             format!("{kind:?}").to_lowercase(),
             total / 1e9,
             limit / 1e9
@@ -325,6 +379,14 @@ impl Builder {
                     return Err(self.err(field, message));
                 };
                 return Ok(groups.of_face.iter().map(|&f| f == g as u32).collect());
+            }
+            RegionSpec::Box { min, max } => {
+                let (lo, hi) = (DVec3::new(min.0, min.1, min.2) * len, DVec3::new(max.0, max.1, max.2) * len);
+                if !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()) {
+                    let message = format!("needs finite min < max in x, y and z (got {min:?} to {max:?})");
+                    return Err(self.err(field, message));
+                }
+                m.rest.iter().map(|p| p.cmpge(lo).all() && p.cmple(hi).all()).collect()
             }
             RegionSpec::Uv { min, max } => {
                 let (lo, hi) = (DVec2::new(min.0, min.1) * len, DVec2::new(max.0, max.1) * len);
@@ -366,6 +428,37 @@ impl Builder {
         }
     }
 
+    /// The memory a run may take (bytes): the scene's budget where it states one, else the
+    /// machine's; and whose it is, for the message.
+    fn memory_limit(&self) -> Option<(f64, &'static str)> {
+        match self.budget.get() {
+            Some(b) => Some((b, "the scene's `memory` budget of")),
+            None => machine_memory().map(|m| (m, "this machine's")),
+        }
+    }
+
+    /// Refuses a refinement to `vertices` vertices (`faces` faces, `levels` levels) that the
+    /// machine's memory or the scene's budget cannot hold beside the earlier layers, naming the
+    /// estimate; and says the estimate (`skinsim check` shows it).
+    pub(super) fn with_memory_estimate(
+        &self,
+        field: &str,
+        kind: LayerKind,
+        vertices: u64,
+        levels: u32,
+        faces: u64,
+    ) -> Result<(), SceneError> {
+        let bytes = vertices as f64 * bytes_per_vertex(kind);
+        self.note(format!(
+            "{field}: {levels} subdivision levels: about {vertices} vertices and {faces} faces, {:.1} MB to run",
+            bytes / 1e6
+        ));
+        self.with_memory(field, kind, vertices).map(|_| ()).map_err(|mut e| {
+            e.message = format!("the refinement ({levels} levels, about {vertices} vertices): {}", e.message);
+            e
+        })
+    }
+
     /// Adds a built layer's estimated memory to the scene's (every patch runs at once) and
     /// refuses the layer that takes the scene past the machine's memory.
     fn charge_memory(&self, field: &str, kind: LayerKind, vertices: u64) -> Result<(), SceneError> {
@@ -377,7 +470,7 @@ impl Builder {
     /// `field` when that passes the machine's memory.
     fn with_memory(&self, field: &str, kind: LayerKind, vertices: u64) -> Result<f64, SceneError> {
         let bytes = self.memory.get() + vertices as f64 * bytes_per_vertex(kind);
-        match machine_memory().and_then(|limit| memory_error(vertices, kind, bytes, limit)) {
+        match self.memory_limit().and_then(|(limit, whose)| memory_error(vertices, kind, bytes, limit, whose)) {
             Some(message) => Err(self.err(field, message)),
             None => Ok(bytes),
         }
@@ -416,8 +509,8 @@ mod tests {
     fn the_memory_estimate_counts_the_whole_scene() {
         let limit = 16e9;
         let layer = 1_000_000 * bytes_per_vertex(LayerKind::Shell) as u64;
-        assert!(memory_error(1_000_000, LayerKind::Shell, layer as f64, limit).is_none());
-        let message = memory_error(1_000_000, LayerKind::Shell, 2.0 * layer as f64, limit).unwrap();
+        assert!(memory_error(1_000_000, LayerKind::Shell, layer as f64, limit, "this machine's").is_none());
+        let message = memory_error(1_000_000, LayerKind::Shell, 2.0 * layer as f64, limit, "this machine's").unwrap();
         assert!(message.contains("1000000 vertices (a shell layer)") && message.contains("24.0 GB"), "{message}");
     }
 }

@@ -6,6 +6,7 @@
 pub mod anchors;
 mod build;
 pub mod built;
+mod character;
 mod couplings;
 mod drivers;
 pub mod error;

@@ -95,7 +95,12 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32, role: Role) -> (En
         layer_vertices.push(verts);
     }
     let (lo, hi) = mesh::bounds(&all_rest);
-    let (motion, captures) = spawn_drivers(world, p, &layers, &layer_vertices, 0.5 * (lo + hi));
+    let (mut motion, captures) = spawn_drivers(world, p, &layers, &layer_vertices, 0.5 * (lo + hi));
+    for (li, l) in p.layers.iter().enumerate() {
+        if let Some(e) = &l.embedding {
+            motion.motions.push(embedded_motion(world, &motion, e, layers[e.base], layers[li], l));
+        }
+    }
     for c in &p.couplings {
         let batch: Vec<_> = c
             .kernels
@@ -165,6 +170,11 @@ fn spawn_drivers(
                     targets: targets.iter().map(|(d, k)| (d.clone(), Keyframes(k.clone()))).collect(),
                     interpolation: *interpolation,
                 }),
+                keyframes: Keyframes(Vec::new()),
+            }),
+            BuiltDriver::Rig { layer, rig } => motion.motions.push(Motion {
+                layers: vec![layers[*layer]],
+                kind: MotionKind::Rig(rig.clone()),
                 keyframes: Keyframes(Vec::new()),
             }),
             BuiltDriver::Sequence { layer, frames, start } => motion.motions.push(Motion {
@@ -418,4 +428,28 @@ fn spawn_layer(
         }
     }
     (layer, verts)
+}
+
+/// The motion of a layer embedded in `base` (issue 62), with the motions that move the base
+/// (the body's, or the patch's own), which say when its load holds.
+fn embedded_motion(
+    world: &World,
+    own: &PatchMotion,
+    e: &super::built::BuiltEmbedding,
+    base: Entity,
+    layer: Entity,
+    l: &BuiltLayer,
+) -> Motion {
+    let owner = world.get::<LayerOf>(base).map(|o| o.0);
+    let carriers: Vec<Motion> = match owner.and_then(|o| world.get::<PatchMotion>(o)) {
+        Some(body) => body.motions.iter().filter(|m| m.layers.contains(&base)).cloned().collect(),
+        None => own.motions.iter().filter(|m| m.layers.contains(&base)).cloned().collect(),
+    };
+    let LayerMesh::Surface(m) = &l.mesh else { unreachable!("an embedded layer is a surface") };
+    let embedding = Embedding { base, stencils: e.stencils.clone(), faces: m.faces.clone(), distance: e.distance };
+    Motion {
+        layers: vec![layer],
+        kind: MotionKind::Embed { embedding: std::sync::Arc::new(embedding), carriers },
+        keyframes: Keyframes(Vec::new()),
+    }
 }

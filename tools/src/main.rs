@@ -357,6 +357,9 @@ fn check(path: &Path) -> ExitCode {
                 verts,
                 s.scene.frames
             );
+            for note in &s.notes {
+                println!("  {note}");
+            }
             ExitCode::SUCCESS
         }
         Err(code) => code,
@@ -373,6 +376,9 @@ fn run(args: RunArgs) -> ExitCode {
         Ok(s) => s,
         Err(code) => return code,
     };
+    if !args.quiet {
+        scene.notes.iter().filter(|n| n.starts_with("warning")).for_each(|n| eprintln!("{n}"));
+    }
     if args.frames == Some(0) {
         eprintln!("error: --frames must be at least 1");
         return ExitCode::from(2);

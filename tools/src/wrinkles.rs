@@ -285,6 +285,85 @@ pub fn resample_on_grid(
     (uv, x)
 }
 
+/// The dominant wave of a height field over a patch (issue 62: the direction of forehead lines
+/// on a curved, irregular mesh): `height` per vertex, resampled linearly on a regular material
+/// grid of spacing `step` (nodes off the mesh count 0), mean removed, a Hann window in both
+/// directions, and the strongest bin of the 2D power spectrum away from the mean.
+#[derive(Clone, Debug)]
+pub struct Wave {
+    /// The dominant wavelength (m) and its wave vector's angle from the material u axis
+    /// (radians, in [0, pi)).
+    pub wavelength: f64,
+    pub angle: f64,
+    /// The radial spectrum: (wavelength, power summed over the bins at that |k|), one entry per
+    /// whole bin radius, longest wavelength first.
+    pub radial: Vec<(f64, f64)>,
+}
+
+pub fn dominant_wave(material: &[DVec2], height: &[f64], faces: &[[u32; 3]], step: f64) -> Option<Wave> {
+    let (lo, hi) = material
+        .iter()
+        .fold((DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)), |(a, b), p| (a.min(*p), b.max(*p)));
+    let cells = ((hi - lo) / step).ceil();
+    if !(cells.x >= 4.0 && cells.y >= 4.0 && cells.x * cells.y < 1e8) {
+        return None;
+    }
+    let (nx, ny) = (cells.x as usize, cells.y as usize);
+    let lifted: Vec<DVec3> = height.iter().map(|h| DVec3::new(0.0, 0.0, *h)).collect();
+    let (uv, x) = resample_on_grid(material, &lifted, faces, (nx, ny));
+    let (n, m) = ((4 * (nx + 1)).next_power_of_two(), (4 * (ny + 1)).next_power_of_two());
+    let mean = x.iter().map(|p| p.z).sum::<f64>() / x.len().max(1) as f64;
+    let mut grid = vec![Complex::new(0.0, 0.0); n * m];
+    let gstep = (hi - lo) / DVec2::new(nx as f64, ny as f64);
+    let hann = |i: f64, count: usize| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i / count as f64).cos();
+    for (u, p) in uv.iter().zip(&x) {
+        let c = ((*u - lo) / gstep).round();
+        let (i, j) = (c.x as usize, c.y as usize);
+        grid[j * n + i] = Complex::new((p.z - mean) * hann(c.x, nx) * hann(c.y, ny), 0.0);
+    }
+    let mut planner = FftPlanner::new();
+    let rows = planner.plan_fft_forward(n);
+    grid.chunks_exact_mut(n).for_each(|r| rows.process(r));
+    let cols = planner.plan_fft_forward(m);
+    let mut col = vec![Complex::new(0.0, 0.0); m];
+    for i in 0..n {
+        (0..m).for_each(|j| col[j] = grid[j * n + i]);
+        cols.process(&mut col);
+        (0..m).for_each(|j| grid[j * n + i] = col[j]);
+    }
+    // Wave numbers (cycles per metre) of bin (i, j); the half plane ky >= 0 holds every wave once.
+    let (lx, ly) = (gstep.x * n as f64, gstep.y * m as f64);
+    let k_of = |i: usize, j: usize| {
+        let fi = if i <= n / 2 { i as f64 } else { i as f64 - n as f64 };
+        let fj = if j <= m / 2 { j as f64 } else { j as f64 - m as f64 };
+        DVec2::new(fi / lx, fj / ly)
+    };
+    let dk = (1.0 / lx).max(1.0 / ly);
+    let mut best = (0.0, DVec2::ZERO);
+    let mut radial: Vec<f64> = Vec::new();
+    for j in 0..=m / 2 {
+        for i in 0..n {
+            let k = k_of(i, j);
+            let power = grid[j * n + i].norm_sqr();
+            let bin = (k.length() / dk).round() as usize;
+            if bin >= radial.len() {
+                radial.resize(bin + 1, 0.0);
+            }
+            radial[bin] += power;
+            // (the domain's first bins are its window, not a wave)
+            if k.length() > 2.0 * dk && power > best.0 {
+                best = (power, k);
+            }
+        }
+    }
+    if best.0 <= 0.0 {
+        return None;
+    }
+    let angle = best.1.y.atan2(best.1.x).rem_euclid(std::f64::consts::PI);
+    let radial = radial.iter().enumerate().skip(1).map(|(b, p)| (1.0 / (b as f64 * dk), *p)).collect();
+    Some(Wave { wavelength: 1.0 / best.1.length(), angle, radial })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -401,5 +480,27 @@ mod tests {
         assert_eq!(p.s.len(), 10);
         assert!(p.h.iter().all(|h| h.abs() < 1e-15), "averaged rows, mean removed");
         assert!((compression(&positions, &material, 0) - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_dominant_wave_of_a_tilted_wave_has_its_wavelength_and_direction() {
+        // A 6 mm wave whose crests run at 30 degrees to u (wave vector at 120 degrees), on a grid.
+        let (lambda, angle) = (0.006, 120f64.to_radians());
+        let n = 80;
+        let uv: Vec<DVec2> =
+            (0..=n).flat_map(|j| (0..=n).map(move |i| DVec2::new(i as f64, j as f64) * 0.0005)).collect();
+        let mut faces = Vec::new();
+        for j in 0..n as u32 {
+            for i in 0..n as u32 {
+                let v = j * (n + 1) as u32 + i;
+                let w = v + (n + 1) as u32;
+                faces.extend([[v, v + 1, w + 1], [v, w + 1, w]]);
+            }
+        }
+        let k = DVec2::new(angle.cos(), angle.sin()) * (2.0 * std::f64::consts::PI / lambda);
+        let h: Vec<f64> = uv.iter().map(|u| 1e-4 * k.dot(*u).sin()).collect();
+        let w = dominant_wave(&uv, &h, &faces, 0.00025).unwrap();
+        assert!((w.wavelength / lambda - 1.0).abs() < 0.05, "{}", w.wavelength);
+        assert!((w.angle - angle).abs() < 3f64.to_radians(), "{}", w.angle.to_degrees());
     }
 }

@@ -138,6 +138,29 @@ pub enum DriverSpec {
         #[serde(default)]
         start: u32,
     },
+    /// Moves a glTF body (issue 62) by its own rig: an animation clip of the asset (`clip`, its
+    /// time = (frame - `start`) x frame_time x `speed`) and/or keyframed joint rotations and
+    /// morph-target weights by name, skinned by linear blend skinning or dual quaternions.
+    /// Morph targets act before skinning, as glTF orders them.
+    Rig {
+        layer: String,
+        #[serde(default)]
+        clip: Option<String>,
+        #[serde(default)]
+        start: u32,
+        #[serde(default = "default_one")]
+        speed: f64,
+        /// Rotations about an axis of the joint's own (local) frame, on top of the clip's.
+        #[serde(default)]
+        joints: Vec<JointKeysSpec>,
+        /// Morph-target weights (replacing the clip's for that target).
+        #[serde(default)]
+        morphs: Vec<MorphKeysSpec>,
+        #[serde(default)]
+        skinning: SkinningSpec,
+        #[serde(default)]
+        interpolation: crate::model::Interpolation,
+    },
     /// Makes wrinkles permanent (H15 4.3): after the solve of `frame`, `fraction` of each
     /// element's current stretch becomes its prestrain (F0 <- F0 U^-fraction) and each hinge's
     /// rest bend moves that fraction towards its current bend. `map` paints the fraction
@@ -162,6 +185,35 @@ pub enum PoseSpec {
     /// The part beyond the centre (x) folds upwards about a line along y: at 180 degrees the
     /// crease closes to zero width, past it the halves pass through each other.
     Fold { angle: f64 },
+}
+
+/// How a glTF skin blends its joints' transforms (PHYSICS.md 7).
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq, Eq)]
+pub enum SkinningSpec {
+    /// Linear blend skinning (the glTF specification's): collapses the inside of a bent or
+    /// twisted joint.
+    #[default]
+    Linear,
+    /// Dual-quaternion skinning (Kavan et al. 2007): keeps volume at twisting joints.
+    DualQuaternion,
+}
+
+/// A joint of a glTF skin turned about `axis` (its own frame; normalised) by keyframed angles
+/// (frame, degrees).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "JointKeys")]
+pub struct JointKeysSpec {
+    pub joint: String,
+    pub axis: (f64, f64, f64),
+    pub keyframes: Vec<(u32, f64)>,
+}
+
+/// A morph target of a glTF mesh weighted by keyframes (frame, weight).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "MorphKeys")]
+pub struct MorphKeysSpec {
+    pub target: String,
+    pub keyframes: Vec<(u32, f64)>,
 }
 
 fn unit_range() -> (f64, f64) {

@@ -285,7 +285,36 @@ pub enum MeshSpec {
         distance: f64,
         #[serde(default)]
         region: Option<RegionSpec>,
+        /// Refine the selected faces (issue 62): subdivided until their edges meet the target,
+        /// the new vertices on the base's smooth (Loop limit) surface. A kinematic layer refined
+        /// from a body is embedded in it: each vertex a fixed combination of body vertices, so
+        /// the body's motion (skinning, morphs, joints, sequences) carries it exactly.
+        #[serde(default)]
+        refine: Option<RefineSpec>,
     },
+    /// A glTF 2.0 asset (`.gltf` with its buffers, or `.glb`; path relative to the scene): a
+    /// kinematic body with its UVs, skin and morph targets, moved by a `Rig` driver. glTF is in
+    /// metres with +Y up: it is turned to +Z up (as Blender imports it) and never rescaled.
+    Gltf {
+        path: String,
+        /// The asset's mesh by name (default: its only mesh).
+        #[serde(default)]
+        mesh: Option<String>,
+    },
+}
+
+/// How finely a refined region is subdivided: each level halves its edges.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub enum RefineSpec {
+    /// At least this many edges per wavelength of the smallest coupling on this layer (or, for a
+    /// kinematic layer, of the couplings it is the lower layer of, and of the layers offset from
+    /// it) (the elements-per-wavelength rule, REMESH.md).
+    Wavelength(f64),
+    /// The longest refined edge at most this long (length units).
+    Edge(f64),
+    /// This many subdivision levels (0: the base's own faces, placed on its limit surface).
+    Levels(u32),
 }
 
 /// A slab's grid halves along each axis whose cell count is even every `every` (length units)
@@ -312,6 +341,8 @@ pub enum RegionSpec {
     Mask { image: String, threshold: f64 },
     /// The faces of an OBJ group (`o` or `g` name) of the surface's OBJ file.
     Group(String),
+    /// Vertices inside a box (length units; the body's frame, where it sits in the world).
+    Box { min: (f64, f64, f64), max: (f64, f64, f64) },
 }
 
 #[derive(Clone, Copy, Debug, Serialize, Deserialize)]

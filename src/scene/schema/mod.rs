@@ -35,6 +35,10 @@ pub struct Scene {
     pub patches: Vec<PatchSpec>,
     #[serde(default)]
     pub output: OutputSpec,
+    /// The memory the run may take (GB; default: the machine's physical memory). `check`
+    /// refuses a scene whose estimate passes it, naming the layer and the estimate.
+    #[serde(default)]
+    pub memory: Option<f64>,
 }
 
 /// A kinematic body shared by patches: its surface, where it sits, and the drivers that move it
