@@ -58,25 +58,47 @@ pub fn apply_motions(
 }
 
 /// Embedded layers (issue 62) follow their bodies, after every body has moved: each vertex the
-/// fixed stencil of the body's current positions.
-pub fn carry_embedded(patches: Query<&PatchMotion>, layers: Query<&LayerVertices>, mut vertices: Query<&mut Position>) {
+/// fixed stencil of the body's current positions. The shells offset from them start their solve
+/// moved along (`Embedding::followers`).
+pub fn carry_embedded(
+    patches: Query<&PatchMotion>,
+    layers: Query<&LayerVertices>,
+    mut vertices: Query<(&mut Position, Option<&Prescribed>)>,
+) {
     for motion in &patches {
         for m in &motion.motions {
             let MotionKind::Embed { embedding, .. } = &m.kind else { continue };
             let Ok(base) = layers.get(embedding.base) else { continue };
-            let body: Vec<_> =
-                base.entities().iter().map(|&v| vertices.get(v).map_or(Default::default(), |p| p.0)).collect();
+            let body: Vec<_> = base.entities().iter().map(|&v| position(&vertices, v)).collect();
             let carried = embedding.positions(&body);
             for &layer in &m.layers {
                 let Ok(verts) = layers.get(layer) else { continue };
+                let moved: Vec<_> =
+                    verts.entities().iter().zip(&carried).map(|(&v, p)| *p - position(&vertices, v)).collect();
                 for (&v, p) in verts.entities().iter().zip(&carried) {
-                    if let Ok(mut pos) = vertices.get_mut(v) {
+                    if let Ok((mut pos, _)) = vertices.get_mut(v) {
                         if pos.0 != *p {
                             pos.0 = *p;
+                        }
+                    }
+                }
+                for &follower in &embedding.followers {
+                    let Ok(verts) = layers.get(follower) else { continue };
+                    for (&v, d) in verts.entities().iter().zip(&moved) {
+                        let Ok((mut pos, fixed)) = vertices.get_mut(v) else { continue };
+                        let free = fixed.map_or([true; 3], |f| f.0.map(|x| !x));
+                        let mut p = pos.0;
+                        (0..3).filter(|&k| free[k]).for_each(|k| p[k] += d[k]);
+                        if p != pos.0 {
+                            pos.0 = p;
                         }
                     }
                 }
             }
         }
     }
+}
+
+fn position(vertices: &Query<(&mut Position, Option<&Prescribed>)>, v: Entity) -> glam::DVec3 {
+    vertices.get(v).map_or(glam::DVec3::ZERO, |p| p.0 .0)
 }

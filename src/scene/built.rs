@@ -86,6 +86,12 @@ pub struct BuiltLayer {
     pub asset: Option<std::sync::Arc<BodyAsset>>,
     /// A kinematic layer refined from a moving surface: carried by it.
     pub embedding: Option<BuiltEmbedding>,
+    /// A refined layer: per vertex, the base's face it came from and its barycentric
+    /// coordinates there (the midpoint-split parameterisation).
+    pub parents: Option<Vec<(u32, DVec3)>>,
+    /// A shell offset from an earlier layer, vertex for vertex (an Offset without region or
+    /// refinement): that layer, whose motion is its Newton start's (`Embedding::followers`).
+    pub follows: Option<usize>,
 }
 
 /// A glTF body (issue 62): the asset, its frame and its UV islands.
@@ -101,8 +107,11 @@ pub struct BodyAsset {
     pub of_face: Vec<u32>,
     /// Per face corner: the asset's UVs, and the length-true material coordinates (m); None for
     /// an asset without UVs.
-    pub corner_uv: Option<(Vec<[DVec2; 3]>, Vec<[DVec2; 3]>)>,
+    pub corner_uv: Option<(Corners, Corners)>,
 }
+
+/// Per face, a value at each of its corners.
+pub type Corners = Vec<[DVec2; 3]>;
 
 /// A layer embedded in a surface of its patch (a body's layer 0 or an earlier kinematic layer):
 /// each vertex the stencil of that layer's vertices, moved `distance` along the normal.

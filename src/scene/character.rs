@@ -18,6 +18,14 @@ use crate::model::{Interpolation, Keyframes, LayerKind, RigMotion};
 /// this factor, gets a conformal chart of its own as its material space.
 pub const CHART_STRETCH: f64 = 1.1;
 
+/// A refined layer's mesh, its embedding (kinematic layers) and each vertex's parent face and
+/// barycentric coordinates in the base.
+pub(super) struct Refined {
+    pub mesh: SurfaceMesh,
+    pub embedding: Option<BuiltEmbedding>,
+    pub parents: Vec<(u32, DVec3)>,
+}
+
 impl Builder {
     /// A glTF body: its welded surface in the engine's frame (+Z up, metres), the material
     /// coordinates length-true per UV island, and the asset for its `Rig` driver.
@@ -97,7 +105,7 @@ impl Builder {
         lambda: Option<f64>,
         len: f64,
         kind: LayerKind,
-    ) -> Result<(SurfaceMesh, Option<BuiltEmbedding>), SceneError> {
+    ) -> Result<Refined, SceneError> {
         let LayerMesh::Surface(bm) = &base.mesh else {
             return Err(self.err(format!("{field}.layer"), format!("\"{}\" is not a surface", base.name)));
         };
@@ -167,7 +175,7 @@ impl Builder {
             };
             BuiltEmbedding { base, stencils, distance }
         });
-        Ok((SurfaceMesh { rest, uv, faces: r.faces }, embedding))
+        Ok(Refined { mesh: SurfaceMesh { rest, uv, faces: r.faces }, embedding, parents: r.parent })
     }
 
     /// The material coordinates (m) of the corners of each face of `region` of `base`: its UV
@@ -224,13 +232,15 @@ impl Builder {
         skinning: SkinningSpec,
         interpolation: Interpolation,
         frame_time: f64,
+        frames: u32,
         offset: DVec3,
     ) -> Result<RigMotion, SceneError> {
         let Some(body) = &layer.asset else {
             return Err(self.err(format!("{dat}.layer"), format!("\"{}\" is not a glTF body", layer.name)));
         };
         let a = &body.asset;
-        let at_file = |f: String, e: &dyn std::fmt::Display| SceneError::at_field(&body.path, f, e.to_string());
+        // (a name the scene gives that the asset lacks: the scene's field, the asset named)
+        let at_file = |f: String, e: &dyn std::fmt::Display| self.err(f, format!("{}: {e}", body.path.display()));
         let clip = match clip {
             None => None,
             Some(name) => {
@@ -287,10 +297,11 @@ impl Builder {
         };
         if skinning == rig::Skinning::DualQuaternion {
             // Dual quaternions hold rigid joints only: check the rest pose and every clip key.
-            let mut frames: Vec<f64> = motion.key_frames().into_iter().map(f64::from).collect();
-            frames.push(0.0);
-            for f in frames {
-                a.pose_positions(&motion.pose(f), skinning).map_err(|e| at_file(format!("{dat}.skinning"), &e))?;
+            // Dual quaternions hold rigid joints only: check every frame of the run (a clip's scale
+            // may be between its keys).
+            for f in 0..=frames {
+                a.pose_positions(&motion.pose(f64::from(f)), skinning)
+                    .map_err(|e| at_file(format!("{dat}.skinning"), &format!("at frame {f}: {e}")))?;
             }
         }
         Ok(motion)

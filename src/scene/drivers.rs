@@ -211,6 +211,7 @@ impl Builder {
                     *skinning,
                     *interpolation,
                     scene.frame_time,
+                    scene.frames,
                     offset,
                 )?;
                 BuiltDriver::Rig { layer: li, rig: std::sync::Arc::new(rig) }

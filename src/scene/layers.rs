@@ -36,7 +36,7 @@ impl Builder {
         index: &HashMap<String, usize>,
         lambda: Option<f64>,
     ) -> Result<BuiltLayer, SceneError> {
-        let super::meshes::BuiltMesh { mesh, shared, slab, groups, asset, embedding } =
+        let super::meshes::BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, follows } =
             self.mesh(at, l, len, offset, earlier, index, lambda)?;
         let needs_material = l.kind != LayerKind::Kinematic;
         let (mut material, mut thickness) = (None, None);
@@ -180,6 +180,8 @@ impl Builder {
             properties,
             asset,
             embedding,
+            parents,
+            follows,
         })
     }
 

@@ -22,6 +22,8 @@ pub(super) struct BuiltMesh {
     pub groups: Option<FaceGroups>,
     pub asset: Option<std::sync::Arc<super::built::BodyAsset>>,
     pub embedding: Option<super::built::BuiltEmbedding>,
+    pub parents: Option<Vec<(u32, DVec3)>>,
+    pub follows: Option<usize>,
 }
 
 impl Builder {
@@ -54,7 +56,7 @@ impl Builder {
         let mut shared = Vec::new();
         let mut slab = None;
         let mut groups = None;
-        let (mut asset, mut embedding) = (None, None);
+        let (mut asset, mut embedding, mut parents, mut follows) = (None, None, None, None);
         let positive = |v: f64, what: &str| -> Result<(), SceneError> {
             if v > 0.0 && v.is_finite() {
                 Ok(())
@@ -242,8 +244,9 @@ impl Builder {
                     Some(r) => self.region(&format!("{field}.region"), r, bm, base, len)?,
                     None => vec![true; bm.faces.len()],
                 };
-                let (mut m, e) = self.refined(&field, base, bi, &keep, distance * len, refine, lambda, len, l.kind)?;
-                embedding = e;
+                let r = self.refined(&field, base, bi, &keep, distance * len, refine, lambda, len, l.kind)?;
+                let mut m = r.mesh;
+                (embedding, parents) = (r.embedding, Some(r.parents));
                 m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
                 LayerMesh::Surface(m)
             }
@@ -259,8 +262,21 @@ impl Builder {
                 let LayerMesh::Surface(m) = &base.mesh else {
                     return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
                 };
+                // A glTF body's material space is its UVs per face corner (islands overlap, seams
+                // split): a shell or a UV region on it goes through `refine`.
+                let uv_region = matches!(region, Some(RegionSpec::Uv { .. } | RegionSpec::Mask { .. }));
+                if base.asset.is_some() && (l.kind == LayerKind::Shell || uv_region) {
+                    return Err(self.err(
+                        &field,
+                        format!(
+                            "an Offset of the glTF body \"{layer}\" takes its material space from the UVs of each \
+                             face corner: give it `refine` (Levels(0) keeps the body's faces, on its smooth surface)"
+                        ),
+                    ));
+                }
                 let mut m = mesh::bodies::offset(m, distance * len);
                 groups = base.groups.clone();
+                follows = region.is_none().then(|| index[layer]);
                 if let Some(r) = region {
                     let keep = self.region(&format!("{field}.region"), r, &m, base, len)?;
                     m = mesh::select::faces_within(&m, &keep);
@@ -304,7 +320,7 @@ impl Builder {
                 *s = owner;
             }
         }
-        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding })
+        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, follows })
     }
 
     fn surface_only(&self, field: &str, kind: LayerKind) -> Result<(), SceneError> {
@@ -340,18 +356,26 @@ fn machine_memory() -> Option<f64> {
     Some(kb * 1024.0)
 }
 
-/// Why a scene's meshes would not fit in `limit` bytes (`whose`: "this machine's" memory or "the
-/// scene's" budget), with `total` bytes estimated for them.
+/// Why a scene's meshes would not fit in `limit` bytes (`whose`: "this machine's memory" or "the
+/// scene's `memory` budget"), with `total` bytes estimated for them.
 pub(super) fn memory_error(vertices: u64, kind: LayerKind, total: f64, limit: f64, whose: &str) -> Option<String> {
     (total > limit).then(|| {
         format!(
-            "with these {vertices} vertices (a {} layer) the scene needs about {:.1} GB to run, more than \
-             {whose} {:.1} GB of memory",
+            "with these {vertices} vertices (a {} layer) the scene needs about {} to run, more than {whose} ({})",
             format!("{kind:?}").to_lowercase(),
-            total / 1e9,
-            limit / 1e9
+            bytes(total),
+            bytes(limit)
         )
     })
+}
+
+/// A memory size for a message: GB from 1 GB up, else MB.
+fn bytes(b: f64) -> String {
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else {
+        format!("{:.0} MB", b / 1e6)
+    }
 }
 
 impl Builder {
@@ -432,8 +456,8 @@ impl Builder {
     /// machine's; and whose it is, for the message.
     fn memory_limit(&self) -> Option<(f64, &'static str)> {
         match self.budget.get() {
-            Some(b) => Some((b, "the scene's `memory` budget of")),
-            None => machine_memory().map(|m| (m, "this machine's")),
+            Some(b) => Some((b, "the scene's `memory` budget")),
+            None => machine_memory().map(|m| (m, "this machine's memory")),
         }
     }
 
@@ -509,8 +533,9 @@ mod tests {
     fn the_memory_estimate_counts_the_whole_scene() {
         let limit = 16e9;
         let layer = 1_000_000 * bytes_per_vertex(LayerKind::Shell) as u64;
-        assert!(memory_error(1_000_000, LayerKind::Shell, layer as f64, limit, "this machine's").is_none());
-        let message = memory_error(1_000_000, LayerKind::Shell, 2.0 * layer as f64, limit, "this machine's").unwrap();
+        assert!(memory_error(1_000_000, LayerKind::Shell, layer as f64, limit, "this machine's memory").is_none());
+        let message =
+            memory_error(1_000_000, LayerKind::Shell, 2.0 * layer as f64, limit, "this machine's memory").unwrap();
         assert!(message.contains("1000000 vertices (a shell layer)") && message.contains("24.0 GB"), "{message}");
     }
 }

@@ -98,7 +98,7 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32, role: Role) -> (En
     let (mut motion, captures) = spawn_drivers(world, p, &layers, &layer_vertices, 0.5 * (lo + hi));
     for (li, l) in p.layers.iter().enumerate() {
         if let Some(e) = &l.embedding {
-            motion.motions.push(embedded_motion(world, &motion, e, layers[e.base], layers[li], l));
+            motion.motions.push(embedded_motion(world, &motion, p, li, layers[e.base], &layers));
         }
     }
     for c in &p.couplings {
@@ -435,18 +435,25 @@ fn spawn_layer(
 fn embedded_motion(
     world: &World,
     own: &PatchMotion,
-    e: &super::built::BuiltEmbedding,
+    p: &BuiltPatch,
+    li: usize,
     base: Entity,
-    layer: Entity,
-    l: &BuiltLayer,
+    layers: &[Entity],
 ) -> Motion {
+    let (l, layer) = (&p.layers[li], layers[li]);
+    let e = l.embedding.as_ref().expect("called for embedded layers");
     let owner = world.get::<LayerOf>(base).map(|o| o.0);
     let carriers: Vec<Motion> = match owner.and_then(|o| world.get::<PatchMotion>(o)) {
         Some(body) => body.motions.iter().filter(|m| m.layers.contains(&base)).cloned().collect(),
         None => own.motions.iter().filter(|m| m.layers.contains(&base)).cloned().collect(),
     };
     let LayerMesh::Surface(m) = &l.mesh else { unreachable!("an embedded layer is a surface") };
-    let embedding = Embedding { base, stencils: e.stencils.clone(), faces: m.faces.clone(), distance: e.distance };
+    let followers = match p.solver.mode.is_dynamic() {
+        true => Vec::new(),
+        false => p.layers.iter().enumerate().filter(|(_, f)| f.follows == Some(li)).map(|(i, _)| layers[i]).collect(),
+    };
+    let embedding =
+        Embedding { base, stencils: e.stencils.clone(), faces: m.faces.clone(), distance: e.distance, followers };
     Motion {
         layers: vec![layer],
         kind: MotionKind::Embed { embedding: std::sync::Arc::new(embedding), carriers },

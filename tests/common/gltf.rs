@@ -29,6 +29,8 @@ pub struct Asset {
     pub joints: Vec<Joint>,
     /// Per vertex: four joint indices and weights (JOINTS_0 / WEIGHTS_0).
     pub influences: Vec<([u16; 4], [f32; 4])>,
+    /// Per vertex: four more (JOINTS_1 / WEIGHTS_1; empty: none), for up to eight influences.
+    pub influences_1: Vec<([u16; 4], [f32; 4])>,
     /// (name, per-vertex displacement)
     pub morphs: Vec<(String, Vec<[f32; 3]>)>,
     pub clips: Vec<Clip>,
@@ -43,8 +45,15 @@ struct Buffer {
 }
 
 impl Buffer {
-    fn push(&mut self, bytes: &[u8], count: usize, component: u32, ty: &str, minmax: Option<(Vec<f32>, Vec<f32>)>) -> usize {
-        while self.bin.len() % 4 != 0 {
+    fn push(
+        &mut self,
+        bytes: &[u8],
+        count: usize,
+        component: u32,
+        ty: &str,
+        minmax: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()}));
@@ -76,11 +85,14 @@ pub fn write(dir: &Path, name: &str, a: &Asset) -> PathBuf {
     if let Some(uv) = &a.uv {
         attributes["TEXCOORD_0"] = json!(b.floats(uv, "VEC2", false));
     }
-    if !a.influences.is_empty() {
-        let joints: Vec<u8> = a.influences.iter().flat_map(|i| i.0).flat_map(|j| j.to_le_bytes()).collect();
-        attributes["JOINTS_0"] = json!(b.push(&joints, a.influences.len(), 5123, "VEC4", None));
-        let weights: Vec<[f32; 4]> = a.influences.iter().map(|i| i.1).collect();
-        attributes["WEIGHTS_0"] = json!(b.floats(&weights, "VEC4", false));
+    for (set, influences) in [&a.influences, &a.influences_1].into_iter().enumerate() {
+        if influences.is_empty() {
+            continue;
+        }
+        let joints: Vec<u8> = influences.iter().flat_map(|i| i.0).flat_map(|j| j.to_le_bytes()).collect();
+        attributes[format!("JOINTS_{set}")] = json!(b.push(&joints, influences.len(), 5123, "VEC4", None));
+        let weights: Vec<[f32; 4]> = influences.iter().map(|i| i.1).collect();
+        attributes[format!("WEIGHTS_{set}")] = json!(b.floats(&weights, "VEC4", false));
     }
     for (semantic, accessor) in &a.extra {
         b.accessors.push(accessor.clone());
@@ -88,8 +100,7 @@ pub fn write(dir: &Path, name: &str, a: &Asset) -> PathBuf {
     }
     let index_bytes: Vec<u8> = a.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
     let indices = b.push(&index_bytes, a.indices.len(), 5125, "SCALAR", None);
-    let targets: Vec<Value> =
-        a.morphs.iter().map(|(_, d)| json!({"POSITION": b.floats(d, "VEC3", true)})).collect();
+    let targets: Vec<Value> = a.morphs.iter().map(|(_, d)| json!({"POSITION": b.floats(d, "VEC3", true)})).collect();
     let mut primitive = json!({"attributes": attributes, "indices": indices, "mode": 4});
     let mut mesh = json!({"name": name, "primitives": []});
     if !targets.is_empty() {
@@ -139,8 +150,7 @@ pub fn write(dir: &Path, name: &str, a: &Asset) -> PathBuf {
         node["skin"] = json!(0);
     }
     nodes.push(node);
-    let roots: Vec<usize> =
-        (0..a.joints.len()).filter(|&j| a.joints[j].parent.is_none()).chain([mesh_node]).collect();
+    let roots: Vec<usize> = (0..a.joints.len()).filter(|&j| a.joints[j].parent.is_none()).chain([mesh_node]).collect();
     let mut animations = Vec::new();
     for c in &a.clips {
         let times: Vec<[f32; 1]> = c.times.iter().map(|t| [*t]).collect();
@@ -174,18 +184,22 @@ pub fn write(dir: &Path, name: &str, a: &Asset) -> PathBuf {
     path
 }
 
-/// An open cylinder along the glTF x axis (radius r, length l; `around` x `along` quads, each
-/// split in two), its UVs the unrolled surface scaled by `uv_scale` (1 / length: an atlas in
-/// [0, 1] when uv_scale x the larger side is 1). Returns positions, UVs and triangle indices;
-/// the seam is duplicated (a UV island of its own).
+/// An open cylinder along the glTF x axis (radius r, length l, `arc` radians of it centred on
+/// glTF +Y; `around` x `along` quads, each split in two), its UVs the unrolled surface in metres
+/// (x, r x angle: length-true). Returns positions, UVs and triangle indices; with arc = 2 pi the
+/// seam's vertices are duplicated (one island cut open along the seam).
 pub fn cylinder(r: f32, l: f32, around: u32, along: u32, arc: f32) -> (Vec<[f32; 3]>, Vec<[f32; 2]>, Vec<u32>) {
     let (mut p, mut uv, mut idx) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..=along {
         let x = -0.5 * l + l * i as f32 / along as f32;
         for j in 0..=around {
             let t = -0.5 * arc + arc * j as f32 / around as f32;
-            // glTF +Y up: the cylinder's top (t = 0) faces +Y.
-            p.push([x, r * t.cos(), r * t.sin()]);
+            // glTF +Y up: the cylinder's top (t = 0) faces +Y. A full circle's last column is its
+            // first, bit for bit, so that the loader welds the seam (its angles -pi and pi have
+            // sines of opposite signs in f32, +-8.7e-8, not 0).
+            let full = (arc - std::f32::consts::TAU).abs() <= 1e-6;
+            let at = if full && j == around { -0.5 * arc } else { t };
+            p.push([x, r * at.cos(), r * at.sin()]);
             uv.push([x, r * t]);
         }
     }

@@ -1,6 +1,8 @@
 //! Helpers shared by the system-level tests.
 #![allow(dead_code)]
 
+pub mod gltf;
+
 use std::path::{Path, PathBuf};
 
 use glam::DVec2;
