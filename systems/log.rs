@@ -63,6 +63,7 @@ pub fn log_frame(
     faces: Query<(&FaceVerts, Option<&FacePrestrain>)>,
     tets: Query<(&TetVerts, Option<&TetPrestrain>)>,
     vertices: Query<(&Position, &RestPos, &MaterialPos)>,
+    asset_uv: Query<&AssetUv>,
 ) {
     let rec = sink.as_ref().map(|s| &s.0);
     if let Some(rec) = rec {
@@ -90,8 +91,18 @@ pub fn log_frame(
                 rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect()
             };
             if let Some(UsdExport(stage)) = usd.as_deref_mut() {
-                let (normals, uv) = (shading::vertex_normals(&pos, &rm.tris), uv(rm));
-                let f = LayerFrame { positions: &pos, normals: &normals, uv: &uv, tris: &rm.tris, new_topology };
+                // `st`: the asset's own UVs where the layer has them (a character's), else its
+                // material coordinates.
+                let st = |rm: &RenderMesh| -> Option<Vec<DVec2>> {
+                    rm.vertices.iter().map(|e| asset_uv.get(*e).ok().map(|u| u.0)).collect()
+                };
+                let (asset_uv, st) = match st(rm) {
+                    Some(st) => (true, st),
+                    None => (false, uv(rm)),
+                };
+                let normals = shading::vertex_normals(&pos, &rm.tris);
+                let f =
+                    LayerFrame { positions: &pos, normals: &normals, uv: &st, tris: &rm.tris, new_topology, asset_uv };
                 if let Err(e) = stage.add(&patch.name, &layer.name, remeshed, clock.frame, &f) {
                     failure.0.get_or_insert(format!("cannot write the USD cache: {e}"));
                 }

@@ -10,6 +10,7 @@ precision; the stage's time codes span the frames. Prints one line per prim; exi
 match, 1 on a mismatch, 2 when usd-core is missing or the inputs are unreadable.
 """
 
+import math
 import os
 import sys
 
@@ -65,6 +66,9 @@ def main(argv):
             continue
         worst, topology, uv_ok = 0.0, True, True
         st = UsdGeom.PrimvarsAPI(prim).GetPrimvar("st")
+        # A character's layers carry the asset's own UVs in st (the OBJ's vt holds material
+        # coordinates): check them as UVs of the right count instead.
+        asset_st = (prim.GetCustomDataByKey("st") == "asset")
         for t, o in zip(times, objs):
             frames.add(int(t))
             v, vt, f = read_obj(os.path.join(folder, o))
@@ -79,7 +83,11 @@ def main(argv):
             indices = list(mesh.GetFaceVertexIndicesAttr().Get(t))
             flat = [i for face in f for i in face]
             topology &= list(counts) == [3] * len(f) and indices == flat
-            uv_ok &= st.GetInterpolation() == "vertex" and max_diff(st.Get(t), vt) < 1e-6 * max(1.0, max((abs(x) for p in vt for x in p), default=1.0))
+            if asset_st:
+                uv_ok &= st.GetInterpolation() == "vertex" and len(st.Get(t)) == len(v) and all(
+                    math.isfinite(x) for p in st.Get(t) for x in p)
+            else:
+                uv_ok &= st.GetInterpolation() == "vertex" and max_diff(st.Get(t), vt) < 1e-6 * max(1.0, max((abs(x) for p in vt for x in p), default=1.0))
         if worst > 1e-6:
             bad.append(f"{patch}/{layer}: points differ from the OBJ by {worst:.2e} of the extent")
         if not topology:
@@ -87,7 +95,9 @@ def main(argv):
         if not uv_ok:
             bad.append(f"{patch}/{layer}: st differs from the OBJ's vt")
         print(f"{prim.GetPath()}: {len(times)} time samples, points within {worst:.1e} of the OBJ (relative), "
-              f"faces {'match' if topology else 'DIFFER'}, st {'matches' if uv_ok else 'DIFFERS'}")
+              f"faces {'match' if topology else 'DIFFER'}, "
+              + (f"st the asset's UVs {'(finite, one per point)' if uv_ok else 'BAD'}" if asset_st
+                 else f"st {'matches' if uv_ok else 'DIFFERS'}"))
     if frames and (stage.GetStartTimeCode() != min(frames) or stage.GetEndTimeCode() != max(frames)):
         bad.append(f"time codes {stage.GetStartTimeCode()}-{stage.GetEndTimeCode()}, frames {min(frames)}-{max(frames)}")
     print(f"stage {stage_path}: {len(meshes)} meshes, time codes {stage.GetStartTimeCode():g}-{stage.GetEndTimeCode():g} "

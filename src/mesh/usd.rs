@@ -18,6 +18,9 @@ pub struct LayerFrame<'a> {
     pub tris: &'a [[u32; 3]],
     /// The triangles (and so the vertex count) differ from the previous frame's.
     pub new_topology: bool,
+    /// `uv` is a character asset's own UV layout (issue 62), not material coordinates: the prim
+    /// says so (`customData` `st = "asset"`).
+    pub asset_uv: bool,
 }
 
 /// The stage being built.
@@ -42,6 +45,8 @@ struct Prim {
     spools: Vec<BufWriter<File>>,
     /// The topology and `st` of a layer whose topology never changes.
     fixed: Option<(Vec<[u32; 3]>, Vec<DVec2>)>,
+    /// `st` holds the asset's UVs.
+    asset_uv: bool,
 }
 
 /// The time-sampled attributes: (USD declaration, spool file name). The last three are sampled
@@ -84,6 +89,7 @@ impl UsdStage {
             None => self.open_prim(patch, layer, remeshed)?,
         };
         let prim = &mut self.prims[at];
+        prim.asset_uv |= f.asset_uv;
         let w = &mut prim.spools;
         let f3 = |w: &mut BufWriter<File>, v: &DVec3| write!(w, "({}, {}, {})", v.x as f32, v.y as f32, v.z as f32);
         sample(&mut w[0], frame, f.positions, f3)?;
@@ -124,6 +130,7 @@ impl UsdStage {
             sampled_topology: false,
             spools,
             fixed: None,
+            asset_uv: false,
         });
         Ok(i)
     }
@@ -175,8 +182,9 @@ impl UsdStage {
         let name = &prim.names.1;
         writeln!(
             w,
-            "        def Mesh \"{name}\" (\n            customData = {{ string name = \"{}\" }}\n        )\n        {{",
-            escape(&prim.layer)
+            "        def Mesh \"{name}\" (\n            customData = {{ string name = \"{}\"{} }}\n        )\n        {{",
+            escape(&prim.layer),
+            if prim.asset_uv { "; string st = \"asset\"" } else { "" }
         )?;
         writeln!(w, "            uniform token orientation = \"rightHanded\"")?;
         writeln!(w, "            uniform token subdivisionScheme = \"none\"")?;

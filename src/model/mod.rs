@@ -229,6 +229,12 @@ impl LayerVertices {
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct MaterialPos(pub DVec2);
 
+/// A vertex's texture coordinates in its character asset's own UV layout (issue 62: a glTF body
+/// and the layers refined from it), as the asset states them: what the USD cache's `st` carries
+/// back to the DCC. Material space (`MaterialPos`) is these made length-true.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct AssetUv(pub DVec2);
+
 /// Reference (rest) position in 3D (m).
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct RestPos(pub DVec3);

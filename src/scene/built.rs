@@ -92,6 +92,8 @@ pub struct BuiltLayer {
     /// A shell offset from an earlier layer, vertex for vertex (an Offset without region or
     /// refinement): that layer, whose motion is its Newton start's (`Embedding::followers`).
     pub follows: Option<usize>,
+    /// Per vertex, the asset's own UVs (a glTF body and the layers refined or offset from it).
+    pub asset_uv: Option<Vec<DVec2>>,
 }
 
 /// A glTF body (issue 62): the asset, its frame and its UV islands.

@@ -57,16 +57,7 @@ impl Builder {
                 let islands = uv_islands::islands(&faces, &corner_uv);
                 let (corners, report) =
                     uv_islands::length_true(&rest, &faces, &corner_uv, &islands).map_err(|e| fail(&e))?;
-                let mut uv = vec![DVec2::ZERO; rest.len()];
-                let mut seen = vec![false; rest.len()];
-                for (f, c) in faces.iter().zip(&corners) {
-                    for k in 0..3 {
-                        let v = f[k] as usize;
-                        if !seen[v] {
-                            (uv[v], seen[v]) = (c[k], true);
-                        }
-                    }
-                }
+                let uv = per_vertex(&faces, &corners, rest.len());
                 for (i, r) in report.iter().enumerate() {
                     self.note(format!(
                         "{}: UV island {i}: {} faces, scale {:.4e} m per UV unit, principal-stretch ratio mean {:.3} \
@@ -384,4 +375,35 @@ fn compose(outer: &subdivision::Stencil, inner: &[subdivision::Stencil]) -> subd
         }
     }
     out
+}
+
+/// Per vertex, the value of its first corner (in face order): a body's UVs per vertex, where a
+/// seam vertex takes one side's.
+pub(super) fn per_vertex(faces: &[[u32; 3]], corners: &[[DVec2; 3]], n: usize) -> Vec<DVec2> {
+    let mut out = vec![DVec2::ZERO; n];
+    let mut seen = vec![false; n];
+    for (f, c) in faces.iter().zip(corners) {
+        for k in 0..3 {
+            let v = f[k] as usize;
+            if !seen[v] {
+                (out[v], seen[v]) = (c[k], true);
+            }
+        }
+    }
+    out
+}
+
+/// A refined layer's asset UVs: each vertex's parent face's corner UVs interpolated (None where
+/// the base has no asset UVs per corner).
+pub(super) fn interpolated_asset_uv(base: &BuiltLayer, parents: &[(u32, DVec3)]) -> Option<Vec<DVec2>> {
+    let corners = &base.asset.as_ref()?.corner_uv.as_ref()?.0;
+    Some(
+        parents
+            .iter()
+            .map(|&(f, b)| {
+                let c = corners[f as usize];
+                b.x * c[0] + b.y * c[1] + b.z * c[2]
+            })
+            .collect(),
+    )
 }

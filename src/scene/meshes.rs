@@ -24,6 +24,7 @@ pub(super) struct BuiltMesh {
     pub embedding: Option<super::built::BuiltEmbedding>,
     pub parents: Option<Vec<(u32, DVec3)>>,
     pub follows: Option<usize>,
+    pub asset_uv: Option<Vec<DVec2>>,
 }
 
 impl Builder {
@@ -57,6 +58,7 @@ impl Builder {
         let mut slab = None;
         let mut groups = None;
         let (mut asset, mut embedding, mut parents, mut follows) = (None, None, None, None);
+        let mut asset_uv = None;
         let positive = |v: f64, what: &str| -> Result<(), SceneError> {
             if v > 0.0 && v.is_finite() {
                 Ok(())
@@ -224,6 +226,7 @@ impl Builder {
             }
             MeshSpec::Gltf { path, mesh: name } => {
                 let (m, a) = self.gltf_body(&field, path, name.as_deref(), l.kind)?;
+                asset_uv = a.corner_uv.as_ref().map(|(c, _)| super::character::per_vertex(&m.faces, c, m.rest.len()));
                 asset = Some(a);
                 LayerMesh::Surface(m)
             }
@@ -246,6 +249,7 @@ impl Builder {
                 };
                 let r = self.refined(&field, base, bi, &keep, distance * len, refine, lambda, len, l.kind)?;
                 let mut m = r.mesh;
+                asset_uv = super::character::interpolated_asset_uv(base, &r.parents);
                 (embedding, parents) = (r.embedding, Some(r.parents));
                 m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
                 LayerMesh::Surface(m)
@@ -277,6 +281,7 @@ impl Builder {
                 let mut m = mesh::bodies::offset(m, distance * len);
                 groups = base.groups.clone();
                 follows = region.is_none().then(|| index[layer]);
+                asset_uv = follows.and(base.asset_uv.clone());
                 if let Some(r) = region {
                     let keep = self.region(&format!("{field}.region"), r, &m, base, len)?;
                     m = mesh::select::faces_within(&m, &keep);
@@ -320,7 +325,7 @@ impl Builder {
                 *s = owner;
             }
         }
-        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, follows })
+        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, follows, asset_uv })
     }
 
     fn surface_only(&self, field: &str, kind: LayerKind) -> Result<(), SceneError> {

@@ -340,6 +340,11 @@ fn spawn_layer(
     let mut next = spawned.into_iter();
     let verts: Vec<Entity> =
         owners.iter().map(|o| o.unwrap_or_else(|| next.next().expect("one per own vertex"))).collect();
+    if let Some(uv) = &l.asset_uv {
+        own.iter().for_each(|&i| {
+            world.entity_mut(verts[i]).insert(AssetUv(uv[i]));
+        });
+    }
     let mut rng = l.randomize.map(|(a, seed)| (a, rand_pcg::Pcg64::seed_from_u64(seed)));
     let mut modulus = |n: usize| -> Option<Vec<f64>> {
         let (a, rng) = rng.as_mut()?;

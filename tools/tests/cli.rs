@@ -255,15 +255,18 @@ fn colour_modes_show_the_wrinkles_and_log_their_legend() {
 
 /// `--export usd`: Pixar's reader (usd-core, `tools/usd_check.py`) opens the stage and finds
 /// every layer's frames, equal to the OBJ export of the same run: a remeshed layer (time-varying
-/// topology), and the KCK18 skin with its kinematic body.
+/// topology), the KCK18 skin with its kinematic body, and a character (issue 62: the glTF head
+/// and its refined forehead carry the asset's own UVs in `st`, marked so).
 #[test]
 fn the_usd_cache_opens_in_usd_and_matches_the_obj_export() {
     let d = scratch("usd");
     let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
     let checker = Path::new(env!("CARGO_MANIFEST_DIR")).join("usd_check.py");
-    for (name, scene, frames) in
-        [("remesh", "lk14/remesh_one_layer_quick.ron", "3"), ("crease", "kck18/crease_quick.ron", "2")]
-    {
+    for (name, scene, frames) in [
+        ("remesh", "lk14/remesh_one_layer_quick.ron", "3"),
+        ("crease", "kck18/crease_quick.ron", "2"),
+        ("forehead", "character/forehead_quick.ron", "1"),
+    ] {
         let out = d.join(name);
         let mut run = skinsim();
         run.args(["run", "--quiet", "--no-rerun", "--export", "usd", "--export", "obj", "--frames", frames, "--out"]);
@@ -286,6 +289,15 @@ fn the_usd_cache_opens_in_usd_and_matches_the_obj_export() {
     assert!(text.contains("int[] faceVertexIndices.timeSamples"), "a remeshed layer samples its topology");
     let text = std::fs::read_to_string(d.join("crease/skinsim.usda")).unwrap();
     assert!(text.contains("string name = \"body\"") && text.contains("string name = \"skin\""));
+    // The body once, and the patch on it; st in the atlas's [0, 1], as the asset has it.
+    let text = std::fs::read_to_string(d.join("forehead/skinsim.usda")).unwrap();
+    for layer in ["head", "surface", "dermis"] {
+        assert_eq!(text.matches(&format!("string name = \"{layer}\"; string st = \"asset\"")).count(), 1, "{layer}");
+    }
+    let st = text.split("texCoord2f[] primvars:st = [").nth(1).unwrap().split(']').next().unwrap();
+    let values: Vec<f64> =
+        st.split(|c: char| "(), ".contains(c)).filter(|s| !s.is_empty()).map(|s| s.parse().unwrap()).collect();
+    assert!(values.len() > 1000 && values.iter().all(|v| (0.0..=1.0).contains(v)), "{}", values.len());
 }
 
 /// The layout sent with the recording, read back: per patch a 3D view and its energy, residual
