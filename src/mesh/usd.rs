@@ -286,7 +286,14 @@ mod tests {
         for frame in 1..=3 {
             let p = [DVec3::ZERO, DVec3::X, DVec3::Y * frame as f64];
             let n = [DVec3::Z; 3];
-            let f = LayerFrame { positions: &p, normals: &n, uv: &uv, tris: &tris, new_topology: frame == 1 };
+            let f = LayerFrame {
+                positions: &p,
+                normals: &n,
+                uv: &uv,
+                tris: &tris,
+                new_topology: frame == 1,
+                asset_uv: false,
+            };
             stage.add("patch-1", "skin", false, frame, &f).unwrap();
         }
         let written = stage.finish().unwrap();
