@@ -82,7 +82,7 @@ pub fn creature(radius: f64, subdivisions: u32) -> SurfaceMesh {
 }
 
 /// Unit sphere directions and outward triangles of an icosahedron subdivided `n` times.
-fn icosphere(n: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+pub(crate) fn icosphere(n: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
     let t = (1.0 + 5f64.sqrt()) / 2.0;
     let mut v: Vec<DVec3> = [
         (-1.0, t, 0.0),
