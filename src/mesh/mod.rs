@@ -17,6 +17,34 @@ pub mod usd;
 pub mod uv_islands;
 pub mod wrinkle_map;
 
+/// Seeded randomness for the mesh modules' tests (rand_pcg behind the few draws they use).
+#[cfg(test)]
+pub(crate) mod test_rng {
+    use rand::{Rng as _, SeedableRng};
+
+    pub(crate) struct Rng(rand_pcg::Pcg64);
+
+    impl Rng {
+        pub(crate) fn new(seed: u64) -> Rng {
+            Rng(rand_pcg::Pcg64::seed_from_u64(seed))
+        }
+
+        /// Uniform in [lo, hi).
+        pub(crate) fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            self.0.random_range(lo..hi)
+        }
+
+        /// Uniform in 0..n.
+        pub(crate) fn below(&mut self, n: usize) -> usize {
+            self.0.random_range(0..n)
+        }
+
+        pub(crate) fn coin(&mut self) -> bool {
+            self.0.random()
+        }
+    }
+}
+
 pub use bounds::bounds;
 pub use generate::{grid, tet_slab, Coarsening, CoarseningError, GridPattern, SlabPlanes};
 pub use topology::{

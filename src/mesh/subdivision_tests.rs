@@ -6,27 +6,7 @@ use super::*;
 // (the same subdivided icosahedron as the creature body's)
 use crate::mesh::bodies::icosphere;
 
-/// SplitMix64: seeded, dependency-free randomness.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [lo, hi).
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
+use crate::mesh::test_rng::Rng;
 
 /// Flips up to `count` random interior edges (keeping valences >= 3 and no doubled edge), so
 /// that the mesh has irregular vertices of many valences.
@@ -317,7 +297,7 @@ fn compare_with_reference(
 /// with one ring of neighbours equal those of subdividing the whole mesh.
 #[test]
 fn cut_is_exact() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let (mut sphere, mut sphere_faces) = icosphere(2);
     flip_edges(&mut sphere_faces, &mut rng, 40);
     sphere.iter_mut().for_each(|p| *p *= rng.range(0.9, 1.1));
@@ -388,7 +368,7 @@ fn rings_are_enough_and_a_short_cut_is_detected() {
 /// the whole mesh's; with no ring around the region some vertices are (rightly) not valid.
 #[test]
 fn validity_flags_are_sound() {
-    let mut rng = Rng(31);
+    let mut rng = Rng::new(31);
     let (rest, mut faces) = icosphere(2);
     flip_edges(&mut faces, &mut rng, 40);
     let nc = rest.len();
@@ -523,7 +503,7 @@ fn box_spline_reference_is_sane() {
     }
     assert_eq!(at(3.0, 1.0), 0.0);
     // Partition of unity at random points.
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     for _ in 0..20 {
         let p = DVec2::new(rng.range(0.0, 1.0), rng.range(0.0, 1.0));
         let mut s = 0.0;
@@ -542,7 +522,7 @@ fn box_spline_reference_is_sane() {
 fn limit_points_lie_on_the_box_spline() {
     let (n, h) = (12u32, 0.013);
     let (mut rest, faces) = grid(n, h, None);
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     for p in &mut rest {
         let (x, y) = (p.x, p.y);
         p.z = 0.01 * (x / 0.03).sin() * (y / 0.05).cos() + 0.3 * x * y;
@@ -571,7 +551,7 @@ fn limit_points_lie_on_the_box_spline() {
 /// Test 3: affine invariance.
 #[test]
 fn stencils_are_affine() {
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     let (mut rest, mut faces) = icosphere(2);
     flip_edges(&mut faces, &mut rng, 30);
     rest.iter_mut().for_each(|p| *p *= rng.range(0.9, 1.1));
@@ -704,7 +684,7 @@ fn refined_surface_is_smooth() {
         sphere_convergence(splits);
     }
 
-    let mut rng = Rng(13);
+    let mut rng = Rng::new(13);
     let (rest, faces) = forehead(26, 10, &mut rng);
     let region = forehead_region(26);
     assert_eq!(region.len(), 120);
@@ -754,7 +734,7 @@ fn refined_surface_is_smooth() {
 #[test]
 fn border_follows_the_b_spline() {
     let n = 10u32;
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     let (mut rest, faces) = grid(n, 0.01, Some(&mut rng));
     for (v, p) in rest.iter_mut().enumerate() {
         let j = v as u32 / (n + 1);
@@ -865,7 +845,7 @@ fn bad_input_is_reported() {
 /// `estimate` bounds the real sizes; faces are exact.
 #[test]
 fn estimate_bounds_the_sizes() {
-    let mut rng = Rng(23);
+    let mut rng = Rng::new(23);
     let (rest, faces) = forehead(26, 10, &mut rng);
     for (region, levels) in [(forehead_region(26), 3), (vec![5, 77, 130], 4), (vec![9], 0)] {
         let r = refine(&rest, &faces, &region, levels).expect("refine");
@@ -879,7 +859,7 @@ fn estimate_bounds_the_sizes() {
 /// Test 7: the forehead case (120 faces, 4 levels, 30720 faces) is fast.
 #[test]
 fn forehead_case_is_fast() {
-    let mut rng = Rng(29);
+    let mut rng = Rng::new(29);
     let (rest, faces) = forehead(26, 10, &mut rng);
     let region = forehead_region(26);
     let start = std::time::Instant::now();

@@ -2,27 +2,7 @@ use glam::{DQuat, DVec2, DVec3};
 
 use super::*;
 
-/// SplitMix64: seeded, dependency-free randomness.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [lo, hi).
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn coin(&mut self) -> bool {
-        self.next() & 1 == 1
-    }
-}
+use crate::mesh::test_rng::Rng;
 
 /// A test asset: welded rest positions (m), faces, per-corner UVs.
 struct Asset {
@@ -41,7 +21,7 @@ const ALONG: usize = 12;
 /// unrolled from angle 0) times `uv_per_metre` plus `shift`. Columns in `cuts` (besides column 0,
 /// always a seam) start a new strip `gap` further along u. Also the seam edges expected.
 fn cylinder(uv_per_metre: f64, shift: DVec2, cuts: &[usize], gap: f64, seed: u64) -> (Asset, Vec<[u32; 2]>) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let at = |k: usize, j: usize| (j * AROUND + k % AROUND) as u32;
     let mut rest = Vec::new();
     for j in 0..=ALONG {
@@ -82,7 +62,7 @@ fn cylinder(uv_per_metre: f64, shift: DVec2, cuts: &[usize], gap: f64, seed: u64
 /// A jittered grid over [0, w] x [0, h] (in its own plane: `local`), rotated and moved into 3D
 /// by a seeded random rigid motion; vertices on x = `keep_x` keep that x. Split quads.
 fn plane(w: f64, h: f64, nx: usize, ny: usize, keep_x: f64, seed: u64) -> (Vec<DVec2>, Vec<DVec3>, Vec<[u32; 3]>) {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let (dx, dy) = (w / nx as f64, h / ny as f64);
     let mut local = Vec::new();
     for j in 0..=ny {
@@ -117,7 +97,7 @@ fn plane(w: f64, h: f64, nx: usize, ny: usize, keep_x: f64, seed: u64) -> (Vec<D
 /// a pole and `rings` rings of `segments` vertices, quads split along a random diagonal.
 fn cap(rings: usize, segments: usize, max_deg: f64, seed: u64) -> (Vec<DVec3>, Vec<[u32; 3]>) {
     let r = 0.1;
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut rest = vec![DVec3::new(0.0, 0.0, r)];
     for i in 1..=rings {
         let theta = max_deg.to_radians() * i as f64 / rings as f64;
