@@ -119,10 +119,6 @@ pub struct Embedding {
     pub faces: Vec<[u32; 3]>,
     /// Along the normal (m): 0 for the refined surface itself.
     pub distance: f64,
-    /// Shell layers offset from this one vertex for vertex: each frame their free vertices start
-    /// the solve moved as this layer's matching vertex moved (a quasistatic Newton start; the
-    /// equilibrium does not depend on it). Empty in dynamic modes, whose start is x + h v.
-    pub followers: Vec<Entity>,
 }
 
 impl Embedding {

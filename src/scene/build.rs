@@ -162,7 +162,8 @@ impl Builder {
             }
             patches.push(self.patch(&scene, pi, p, &bodies)?);
         }
-        Ok(BuiltScene { path: self.file.clone(), scene, bodies, patches, notes: self.notes.take() })
+        let (notes, memory) = (self.notes.take(), self.memory.get());
+        Ok(BuiltScene { path: self.file.clone(), scene, bodies, patches, notes, memory })
     }
 
     /// A shared body: one kinematic layer named as the body, and the drivers that move it.

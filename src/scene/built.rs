@@ -21,6 +21,9 @@ pub struct BuiltScene {
     /// What the user should know that is not an error (issue 62: refined sizes and their memory,
     /// UV islands' distortion, glTF weights normalised): `check` prints it, `run` too.
     pub notes: Vec<String>,
+    /// The memory a run needs (bytes), estimated from the layers' vertex counts (`meshes.rs`,
+    /// `bytes_per_vertex`): `check` prints it.
+    pub memory: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -89,9 +92,6 @@ pub struct BuiltLayer {
     /// A refined layer: per vertex, the base's face it came from and its barycentric
     /// coordinates there (the midpoint-split parameterisation).
     pub parents: Option<Vec<(u32, DVec3)>>,
-    /// A shell offset from an earlier layer, vertex for vertex (an Offset without region or
-    /// refinement): that layer, whose motion is its Newton start's (`Embedding::followers`).
-    pub follows: Option<usize>,
     /// Per vertex, the asset's own UVs (a glTF body and the layers refined or offset from it).
     pub asset_uv: Option<Vec<DVec2>>,
 }

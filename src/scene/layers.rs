@@ -36,7 +36,7 @@ impl Builder {
         index: &HashMap<String, usize>,
         lambda: Option<f64>,
     ) -> Result<BuiltLayer, SceneError> {
-        let super::meshes::BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, follows, asset_uv } =
+        let super::meshes::BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, asset_uv } =
             self.mesh(at, l, len, offset, earlier, index, lambda)?;
         let needs_material = l.kind != LayerKind::Kinematic;
         let (mut material, mut thickness) = (None, None);
@@ -181,7 +181,6 @@ impl Builder {
             asset,
             embedding,
             parents,
-            follows,
             asset_uv,
         })
     }

@@ -23,7 +23,6 @@ pub(super) struct BuiltMesh {
     pub asset: Option<std::sync::Arc<super::built::BodyAsset>>,
     pub embedding: Option<super::built::BuiltEmbedding>,
     pub parents: Option<Vec<(u32, DVec3)>>,
-    pub follows: Option<usize>,
     pub asset_uv: Option<Vec<DVec2>>,
 }
 
@@ -57,7 +56,7 @@ impl Builder {
         let mut shared = Vec::new();
         let mut slab = None;
         let mut groups = None;
-        let (mut asset, mut embedding, mut parents, mut follows) = (None, None, None, None);
+        let (mut asset, mut embedding, mut parents) = (None, None, None);
         let mut asset_uv = None;
         let positive = |v: f64, what: &str| -> Result<(), SceneError> {
             if v > 0.0 && v.is_finite() {
@@ -280,8 +279,8 @@ impl Builder {
                 }
                 let mut m = mesh::bodies::offset(m, distance * len);
                 groups = base.groups.clone();
-                follows = region.is_none().then(|| index[layer]);
-                asset_uv = follows.and(base.asset_uv.clone());
+                // (a shell offset vertex for vertex keeps its base's asset UVs)
+                asset_uv = region.is_none().then(|| base.asset_uv.clone()).flatten();
                 if let Some(r) = region {
                     let keep = self.region(&format!("{field}.region"), r, &m, base, len)?;
                     m = mesh::select::faces_within(&m, &keep);
@@ -325,7 +324,7 @@ impl Builder {
                 *s = owner;
             }
         }
-        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, follows, asset_uv })
+        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, asset_uv })
     }
 
     fn surface_only(&self, field: &str, kind: LayerKind) -> Result<(), SceneError> {

@@ -453,12 +453,7 @@ fn embedded_motion(
         None => own.motions.iter().filter(|m| m.layers.contains(&base)).cloned().collect(),
     };
     let LayerMesh::Surface(m) = &l.mesh else { unreachable!("an embedded layer is a surface") };
-    let followers = match p.solver.mode.is_dynamic() {
-        true => Vec::new(),
-        false => p.layers.iter().enumerate().filter(|(_, f)| f.follows == Some(li)).map(|(i, _)| layers[i]).collect(),
-    };
-    let embedding =
-        Embedding { base, stencils: e.stencils.clone(), faces: m.faces.clone(), distance: e.distance, followers };
+    let embedding = Embedding { base, stencils: e.stencils.clone(), faces: m.faces.clone(), distance: e.distance };
     Motion {
         layers: vec![layer],
         kind: MotionKind::Embed { embedding: std::sync::Arc::new(embedding), carriers },

@@ -109,7 +109,7 @@ pub(super) fn newton_kkt(
         out.parts = parts;
         out.residual = residual;
         out.constraint_violation = violation;
-        if progress.first() {
+        if progress.first() && out.escapes == 0 {
             (out.start_energy, out.start_violation) = (phi, violation);
             if warm.len() == m && violation <= CONSTRAINT_TOLERANCE {
                 let at_rest = progress.residual(gradient_norm(&warm), force_scale);

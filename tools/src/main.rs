@@ -351,11 +351,12 @@ fn check(path: &Path) -> ExitCode {
                 n => format!("{n} bodies, "),
             };
             println!(
-                "{}: ok ({bodies}{} patches, {} vertices, {} frames)",
+                "{}: ok ({bodies}{} patches, {} vertices, {} frames; about {:.0} MB to run)",
                 path.display(),
                 s.patches.len(),
                 verts,
-                s.scene.frames
+                s.scene.frames,
+                s.memory / 1e6
             );
             for note in &s.notes {
                 println!("  {note}");

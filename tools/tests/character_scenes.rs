@@ -105,8 +105,15 @@ fn the_forehead_wrinkles_in_horizontal_lines_when_the_brows_rise() {
     let up = up_in_material(&uv, &surface);
     // The angle between the wave vector and the world's vertical, seen in material space (lines
     // run horizontally when the wave vector points up).
-    let off = (wave.angle - up).rem_euclid(std::f64::consts::PI);
-    let off = off.min(std::f64::consts::PI - off).to_degrees();
+    let from_vertical = |angle: f64| {
+        let off = (angle - up).rem_euclid(std::f64::consts::PI);
+        off.min(std::f64::consts::PI - off).to_degrees()
+    };
+    let off = from_vertical(wave.angle);
+    // The outer layer, the epidermis (LK14's second layer), shows the same lines.
+    let (euv, eh, efaces) = heights(&mut sim, "forehead", "surface", "epidermis");
+    let outer = dominant_wave(&euv, &eh, &efaces, 0.5e-3).expect("a wave");
+    let outer_off = from_vertical(outer.angle);
     let swing = h.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     // Folds along the coarse edges would put the curvature there: compare it with the
     // curvature inside the coarse faces, for the embedded surface, for the wrinkled dermis, and
@@ -128,14 +135,18 @@ fn the_forehead_wrinkles_in_horizontal_lines_when_the_brows_rise() {
     let (faceted_ratio, surface_ratio, dermis_ratio) = (ratio(&faceted), ratio(&surface), ratio(&dermis));
     println!(
         "forehead_quick: {per_frame:.2} s/frame; dominant wavelength {:.2} mm (kernels 10 mm), wave vector {off:.1} \
-         degrees from vertical; height swing {:.3} mm; curvature on coarse edges / inside coarse faces: flat facets \
-         {faceted_ratio:.1}, embedded surface {surface_ratio:.3}, dermis {dermis_ratio:.3}",
+         degrees from vertical; epidermis {:.2} mm, {outer_off:.1} degrees; height swing {:.3} mm; curvature on \
+         coarse edges / inside coarse faces: flat facets {faceted_ratio:.1}, embedded surface {surface_ratio:.3}, \
+         dermis {dermis_ratio:.3}",
         1e3 * wave.wavelength,
+        1e3 * outer.wavelength,
         1e3 * swing
     );
     assert!(swing > 0.2e-3, "the forehead wrinkles: {swing}");
     // Measured 1.3 degrees (the full scene: see scenes/character/README.md).
     assert!(off < 20.0, "lines within 20 degrees of horizontal: {off:.1}");
+    assert!(outer_off < 20.0, "the epidermis's lines within 20 degrees of horizontal: {outer_off:.1}");
+    assert!((wave.wavelength / outer.wavelength - 1.0).abs() < 0.1, "{} {}", wave.wavelength, outer.wavelength);
     // Measured 8.16 mm: the kernels' band (coupling::kernels::KERNEL_SCALE, 0.9-1.4 lambda on
     // the finger) widened below for this 45 mm tall patch, whose 4.5 waves put the spectrum's
     // bins 10-20 % apart.
