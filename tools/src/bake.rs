@@ -112,6 +112,18 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
     if req.layout == MapLayout::Asset && scene.patches.iter().all(|p| p.body.is_none()) {
         return Err("--layout asset bakes into a shared body's UVs: the scene has no patch on a body".into());
     }
+    // A glTF body's material coordinates are its UV islands made length-true, each centred on
+    // the origin, so they overlap: a map laid out in them would be wrong. (Its own [0, 1] UVs
+    // reach the USD cache's `st`; maps in them are issue 65's.)
+    let gltf =
+        scene.patches.iter().filter_map(|p| p.body).map(|b| &scene.bodies[b]).find(|b| b.layers[0].asset.is_some());
+    if let (MapLayout::Asset, Some(body)) = (req.layout, gltf) {
+        return Err(format!(
+            "--layout asset: \"{}\" is a glTF body, whose length-true UV islands overlap in material space; bake \
+             with --layout material (one map per patch, in its own chart)",
+            body.name
+        ));
+    }
     Ok(frames)
 }
 

@@ -143,16 +143,16 @@ fn the_forehead_wrinkles_in_horizontal_lines_when_the_brows_rise() {
         1e3 * swing
     );
     assert!(swing > 0.2e-3, "the forehead wrinkles: {swing}");
-    // Measured 1.3 degrees (the full scene: see scenes/character/README.md).
+    // Measured 12.1 degrees, the epidermis 4.7 (the full scene: 6.9, `forehead.ron`).
     assert!(off < 20.0, "lines within 20 degrees of horizontal: {off:.1}");
     assert!(outer_off < 20.0, "the epidermis's lines within 20 degrees of horizontal: {outer_off:.1}");
     assert!((wave.wavelength / outer.wavelength - 1.0).abs() < 0.1, "{} {}", wave.wavelength, outer.wavelength);
-    // Measured 8.16 mm: the kernels' band (coupling::kernels::KERNEL_SCALE, 0.9-1.4 lambda on
-    // the finger) widened below for this 45 mm tall patch, whose 4.5 waves put the spectrum's
-    // bins 10-20 % apart.
+    // Measured 12.35 mm, the epidermis 13.25 (the full scene 9.8): the kernels' band
+    // (coupling::kernels::KERNEL_SCALE, 0.9-1.4 lambda on the finger) widened below for this
+    // 45 mm tall patch, whose 4.5 waves put the spectrum's bins 10-20 % apart.
     assert!((0.75..=1.4).contains(&(wave.wavelength / 10e-3)), "{}", wave.wavelength);
-    // Measured: flat facets put all curvature on the coarse edges (ratio in the hundreds); the
-    // limit surface 1.0, the dermis 1.0: no fold follows them.
+    // Measured: flat facets put all curvature on the coarse edges (ratio 4.8e12); the limit
+    // surface 1.18, the dermis 1.06: no fold follows them.
     assert!(faceted_ratio > 10.0, "the measure sees folds on coarse edges: {faceted_ratio}");
     assert!(surface_ratio < 1.5 && dermis_ratio < 1.5, "{surface_ratio} {dermis_ratio}");
 }
@@ -185,10 +185,11 @@ fn the_fingers_crease_across_their_bends_as_the_hand_closes() {
     println!("fist_quick: {per_frame:.2} s/frame");
     for (finger, swing, off) in measured {
         assert!(swing > 0.1e-3, "{finger} creases: {swing}");
-        // Measured 37.7 (index) and 20.1 (middle) degrees: the creases run more across the
-        // finger than along it (under 45 degrees), slanted where the skinning twists the joint
-        // as it closes.
-        assert!(off < 45.0, "{finger}: crests across the finger: {off:.1}");
+        // Measured 4.1 (index) and 19.2 (middle) degrees: the creases run across the finger,
+        // the middle one slanted where the skinning twists its joint as it closes. (With the
+        // shells moved along with their surface before each solve, issue 62's first session:
+        // 37.7 and 20.1.)
+        assert!(off < 30.0, "{finger}: crests across the finger: {off:.1}");
     }
 }
 

@@ -206,6 +206,11 @@ fn command_line_values_out_of_range_exit_2() {
     refused(&bake(&["--frames", "1", "--blend", "5"]), &["--blend"]);
     refused(&bake(&["--weights", "NaN"]), &["--weights"]);
     refused(&bake(&["--frames", "1", "--layout", "asset"]), &["--layout asset", "no patch on a body"]);
+    // (a glTF body's material space is overlapping length-true islands: refused before any run)
+    let forehead = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/forehead_quick.ron");
+    let mut gltf_bake = skinsim();
+    gltf_bake.arg("bake").arg(&forehead).arg("--out").arg(d.join("maps")).args(["--frames", "1", "--layout", "asset"]);
+    refused(&gltf_bake.output().unwrap(), &["--layout asset", "\"head\" is a glTF body"]);
     let asset =
         |extra: &[&str]| skinsim().args(["asset", "hand", "--out"]).arg(d.join("assets")).args(extra).output().unwrap();
     refused(&asset(&["--finger-cells", "100000,100000"]), &["more than 10000000 vertices"]);
