@@ -96,13 +96,19 @@ pub fn log_frame(
                 let st = |rm: &RenderMesh| -> Option<Vec<DVec2>> {
                     rm.vertices.iter().map(|e| asset_uv.get(*e).ok().map(|u| u.0)).collect()
                 };
-                let (asset_uv, st) = match st(rm) {
+                let (from_asset, st) = match st(rm) {
                     Some(st) => (true, st),
                     None => (false, uv(rm)),
                 };
                 let normals = shading::vertex_normals(&pos, &rm.tris);
-                let f =
-                    LayerFrame { positions: &pos, normals: &normals, uv: &st, tris: &rm.tris, new_topology, asset_uv };
+                let f = LayerFrame {
+                    positions: &pos,
+                    normals: &normals,
+                    uv: &st,
+                    tris: &rm.tris,
+                    new_topology,
+                    asset_uv: from_asset,
+                };
                 if let Err(e) = stage.add(&patch.name, &layer.name, remeshed, clock.frame, &f) {
                     failure.0.get_or_insert(format!("cannot write the USD cache: {e}"));
                 }

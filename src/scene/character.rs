@@ -57,7 +57,7 @@ impl Builder {
                 let islands = uv_islands::islands(&faces, &corner_uv);
                 let (corners, report) =
                     uv_islands::length_true(&rest, &faces, &corner_uv, &islands).map_err(|e| fail(&e))?;
-                let uv = per_vertex(&faces, &corners, rest.len());
+                let uv = first_corner_per_vertex(&faces, &corners, rest.len());
                 for (i, r) in report.iter().enumerate() {
                     self.note(format!(
                         "{}: UV island {i}: {} faces, scale {:.4e} m per UV unit, principal-stretch ratio mean {:.3} \
@@ -378,8 +378,8 @@ fn compose(outer: &subdivision::Stencil, inner: &[subdivision::Stencil]) -> subd
 }
 
 /// Per vertex, the value of its first corner (in face order): a body's UVs per vertex, where a
-/// seam vertex takes one side's.
-pub(super) fn per_vertex(faces: &[[u32; 3]], corners: &[[DVec2; 3]], n: usize) -> Vec<DVec2> {
+/// seam vertex takes one side's (`uv_islands::per_vertex` instead refuses corners that differ).
+pub(super) fn first_corner_per_vertex(faces: &[[u32; 3]], corners: &[[DVec2; 3]], n: usize) -> Vec<DVec2> {
     let mut out = vec![DVec2::ZERO; n];
     let mut seen = vec![false; n];
     for (f, c) in faces.iter().zip(corners) {

@@ -225,7 +225,10 @@ impl Builder {
             }
             MeshSpec::Gltf { path, mesh: name } => {
                 let (m, a) = self.gltf_body(&field, path, name.as_deref(), l.kind)?;
-                asset_uv = a.corner_uv.as_ref().map(|(c, _)| super::character::per_vertex(&m.faces, c, m.rest.len()));
+                asset_uv = a
+                    .corner_uv
+                    .as_ref()
+                    .map(|(c, _)| super::character::first_corner_per_vertex(&m.faces, c, m.rest.len()));
                 asset = Some(a);
                 LayerMesh::Surface(m)
             }
