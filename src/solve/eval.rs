@@ -3,16 +3,12 @@
 //! and every sum run in element order, so results do not depend on the thread count.
 
 use glam::DVec3;
-use nalgebra::{SMatrix, SVector};
-use rayon::prelude::*;
 
-use super::elements::{AnchorElem, Elements};
-use super::pattern::{pairs, Pattern, DOUBLE, NONE};
+use super::element::Part;
+use super::elements::Elements;
+use super::pattern::Pattern;
+use super::scatter::Scatter;
 use crate::physics::psd::Filter;
-use crate::physics::{cell, gaussian_bending, hinge, membrane, spring, tet, QuadraticBending};
-
-/// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
-const CHUNK: usize = 1024;
 
 /// Energy by element kind (J).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -21,7 +17,7 @@ pub struct EnergyParts {
     /// Hinges, or the quadratic element and its Gaussian term.
     pub bending: f64,
     pub volume: f64,
-    /// Attachment springs and KCK18 anchors.
+    /// Attachment springs, KCK18 anchors and pins.
     pub springs: f64,
 }
 
@@ -30,37 +26,22 @@ impl EnergyParts {
     pub fn total(&self) -> f64 {
         self.membrane + self.bending + self.volume + self.springs
     }
-}
 
-#[inline]
-fn gather<const NV: usize>(x: &[DVec3], v: &[u32; NV]) -> [DVec3; NV] {
-    std::array::from_fn(|i| x[v[i] as usize])
-}
-
-fn sum_chunks<E: Sync>(elems: &[E], f: impl Fn(&E) -> f64 + Sync) -> f64 {
-    let partial: Vec<f64> = elems.par_chunks(CHUNK).map(|c| c.iter().map(&f).sum::<f64>()).collect();
-    partial.iter().sum()
+    /// Sums each kind's energy into its part, in the kinds' order: a part's first kind sets it.
+    fn collect(kinds: impl Iterator<Item = (Part, f64)>) -> EnergyParts {
+        let mut parts: [Option<f64>; 4] = [None; 4];
+        for (part, e) in kinds {
+            let slot = &mut parts[part as usize];
+            *slot = Some(slot.map_or(e, |s| s + e));
+        }
+        let [membrane, bending, volume, springs] = parts.map(|p| p.unwrap_or(0.0));
+        EnergyParts { membrane, bending, volume, springs }
+    }
 }
 
 /// Energies only, by element kind.
 pub fn energy(elements: &Elements, x: &[DVec3]) -> EnergyParts {
-    EnergyParts {
-        membrane: sum_chunks(&elements.membranes, |e| membrane::energy(e.model, e.lame, &e.rest, &gather(x, &e.v))),
-        bending: sum_chunks(&elements.hinges, |e| hinge::energy(e.model, &e.rest, &e.positions(x)))
-            + elements.quadratic.energy(x)
-            + sum_chunks(&elements.gaussian, |e| gaussian_bending::energy(e, &gather(x, &e.v))),
-        volume: sum_chunks(&elements.tets, |e| tet::energy(e.model, e.lame, &e.rest, &gather(x, &e.v)))
-            + sum_chunks(&elements.cells, |e| cell::energy(&e.rest, &gather(x, &e.v))),
-        springs: sum_chunks(&elements.springs, |e| spring::energy(e.k, x[e.v[0] as usize], x[e.v[1] as usize]))
-            + sum_chunks(&elements.vertex_anchors, |e| anchor_energy(e, x))
-            + sum_chunks(&elements.face_anchors, |e| anchor_energy(e, x))
-            + sum_chunks(&elements.face_springs, |e| anchor_energy(e, x)),
-    }
-}
-
-fn anchor_energy<const NV: usize>(e: &AnchorElem<NV>, x: &[DVec3]) -> f64 {
-    let r = (0..NV).map(|i| e.w[i] * x[e.v[i] as usize]).sum::<DVec3>() - e.target;
-    0.5 * e.k * r.length_squared()
+    EnergyParts::collect(elements.terms().into_iter().map(|t| (t.part(), t.energy(x))))
 }
 
 /// The result of one assembly.
@@ -83,242 +64,18 @@ pub fn assemble(
 ) -> Assembly {
     grad.iter_mut().for_each(|g| *g = 0.0);
     values.iter_mut().for_each(|v| *v = 0.0);
-    let mut out = Assembly::default();
     let mut acc = Scatter { dof: &pattern.dof, grad, values, force: 0.0 };
-    out.parts.membrane = acc.class::<_, 3, 9>(
-        &el.membranes,
-        &pattern.membranes,
-        |e| e.v,
-        |e| membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
-    );
-    out.parts.bending = acc.class::<_, 4, 12>(
-        &el.hinges,
-        &pattern.hinges,
-        |e| e.v,
-        |e| hinge::eval(e.model, &e.rest, &e.positions(x), filter),
-    );
-    out.parts.bending += acc.quadratic(&el.quadratic, &pattern.quadratic, x);
-    out.parts.bending += acc.class::<_, 3, 9>(
-        &el.gaussian,
-        &pattern.gaussian,
-        |e| e.v,
-        |e| gaussian_bending::eval(e, &gather(x, &e.v), filter),
-    );
-    out.parts.volume = acc.class::<_, 4, 12>(
-        &el.tets,
-        &pattern.tets,
-        |e| e.v,
-        |e| tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), filter),
-    );
-    out.parts.volume +=
-        acc.class::<_, 8, 24>(&el.cells, &pattern.cells, |e| e.v, |e| cell::eval(&e.rest, &gather(x, &e.v), filter));
-    out.parts.springs = acc.class::<_, 2, 6>(
-        &el.springs,
-        &pattern.springs,
-        |e| e.v,
-        |e| {
-            let (a, b) = (x[e.v[0] as usize], x[e.v[1] as usize]);
-            let g = spring::gradient(e.k, a, b);
-            let gv = SVector::<f64, 6>::from_column_slice(&[g.x, g.y, g.z, -g.x, -g.y, -g.z]);
-            let mut h = SMatrix::<f64, 6, 6>::zeros();
-            for k in 0..3 {
-                h[(k, k)] = e.k;
-                h[(k + 3, k + 3)] = e.k;
-                h[(k, k + 3)] = -e.k;
-                h[(k + 3, k)] = -e.k;
-            }
-            (spring::energy(e.k, a, b), gv, h)
-        },
-    );
-    out.parts.springs += acc.class::<_, 1, 3>(
-        &el.vertex_anchors,
-        &pattern.vertex_anchors,
-        |e| e.v,
-        |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
-    );
-    out.parts.springs += acc.class::<_, 3, 9>(
-        &el.face_anchors,
-        &pattern.face_anchors,
-        |e| e.v,
-        |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
-    );
-    out.parts.springs += acc.class::<_, 4, 12>(
-        &el.face_springs,
-        &pattern.face_springs,
-        |e| e.v,
-        |e| spring::anchor_eval(e.k, &e.w, &gather(x, &e.v), e.target),
-    );
-    out.force_scale = acc.force;
-    out
-}
-
-struct Scatter<'a> {
-    dof: &'a [u32],
-    grad: &'a mut [f64],
-    values: &'a mut [f64],
-    force: f64,
-}
-
-type Local<const N: usize> = (f64, SVector<f64, N>, SMatrix<f64, N, N>);
-
-impl Scatter<'_> {
-    /// Evaluates one element class chunk by chunk; the next chunk is evaluated in parallel
-    /// while the previous one is scattered.
-    fn class<E: Sync, const NV: usize, const N: usize>(
-        &mut self,
-        elems: &[E],
-        map: &[u32],
-        verts: impl Fn(&E) -> [u32; NV] + Sync,
-        eval: impl Fn(&E) -> Local<N> + Sync + Send,
-    ) -> f64 {
-        let np = pairs(NV);
-        debug_assert_eq!(map.len(), elems.len() * np);
-        let mut energy = 0.0;
-        // Two result buffers, reused: one being filled while the other is scattered.
-        let mut filling: Vec<Local<N>> = Vec::with_capacity(CHUNK.min(elems.len()));
-        let mut ready: Vec<Local<N>> = Vec::with_capacity(CHUNK.min(elems.len()));
-        let mut ready_start: Option<usize> = None;
-        for (ci, chunk) in elems.chunks(CHUNK).enumerate() {
-            rayon::join(
-                || chunk.par_iter().map(&eval).collect_into_vec(&mut filling),
-                || {
-                    if let Some(start) = ready_start {
-                        energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &ready);
-                    }
-                },
-            );
-            std::mem::swap(&mut filling, &mut ready);
-            ready_start = Some(ci * CHUNK);
-        }
-        if let Some(start) = ready_start {
-            energy += self.scatter::<E, NV, N>(&elems[start..], &map[start * np..], &verts, &ready);
-        }
-        energy
-    }
-
-    /// Quadratic bending: W = k / 2 |sum_j w_j x_j|^2, gradient k w_a r at vertex a, Hessian
-    /// k w_a w_b I3 (constant). Serial: a few flops per stencil pair.
-    fn quadratic(&mut self, q: &QuadraticBending, map: &[u32], x: &[DVec3]) -> f64 {
-        let (mut energy, mut m) = (0.0, 0);
-        for i in 0..q.len() {
-            let (vs, ws) = q.stencil(i);
-            let k = q.k[i];
-            let r = q.laplacian(i, x);
-            energy += 0.5 * k * r.length_squared();
-            let mut g2 = 0.0;
-            for (&v, &w) in vs.iter().zip(ws) {
-                let g = k * w * r;
-                g2 += g.length_squared();
-                for (c, gc) in g.to_array().into_iter().enumerate() {
-                    let d = self.dof[3 * v as usize + c];
-                    if d != NONE {
-                        self.grad[d as usize] += gc;
-                    }
-                }
-            }
-            self.force += g2.sqrt();
-            for (a, &wa) in ws.iter().enumerate() {
-                for &wb in &ws[..=a] {
-                    let h = k * wa * wb;
-                    for _ in 0..3 {
-                        let pos = map[m];
-                        m += 1;
-                        if pos != NONE {
-                            if pos & DOUBLE != 0 {
-                                self.values[(pos & !DOUBLE) as usize] += 2.0 * h;
-                            } else {
-                                self.values[pos as usize] += h;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        energy
-    }
-
-    fn scatter<E, const NV: usize, const N: usize>(
-        &mut self,
-        elems: &[E],
-        map: &[u32],
-        verts: &impl Fn(&E) -> [u32; NV],
-        res: &[Local<N>],
-    ) -> f64 {
-        let np = pairs(NV);
-        let mut energy = 0.0;
-        for (i, (e, g, h)) in res.iter().enumerate() {
-            energy += e;
-            self.force += g.norm();
-            let vs = verts(&elems[i]);
-            for p in 0..N {
-                let d = self.dof[3 * vs[p / 3] as usize + p % 3];
-                if d != NONE {
-                    self.grad[d as usize] += g[p];
-                }
-            }
-            let m = &map[i * np..(i + 1) * np];
-            let mut k = 0;
-            for p in 0..N {
-                for q in 0..=p {
-                    let pos = m[k];
-                    if pos != NONE {
-                        if pos & DOUBLE != 0 {
-                            self.values[(pos & !DOUBLE) as usize] += 2.0 * h[(p, q)];
-                        } else {
-                            self.values[pos as usize] += h[(p, q)];
-                        }
-                    }
-                    k += 1;
-                }
-            }
-        }
-        energy
-    }
+    let terms = el.terms();
+    let energies: Vec<(Part, f64)> =
+        terms.iter().zip(&pattern.maps).map(|(t, map)| (t.part(), t.assemble(&mut acc, map, x, filter))).collect();
+    Assembly { parts: EnergyParts::collect(energies.into_iter()), force_scale: acc.force }
 }
 
 /// Gradient of the elastic energy (springs included) at every vertex, fixed ones too: at a
 /// prescribed vertex it is the reaction force the support exerts (with the opposite sign).
 pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
     let mut g = vec![DVec3::ZERO; x.len()];
-    let mut add = |vs: &[u32], gl: &[f64]| {
-        for (i, &v) in vs.iter().enumerate() {
-            g[v as usize] += DVec3::new(gl[3 * i], gl[3 * i + 1], gl[3 * i + 2]);
-        }
-    };
-    for e in &el.membranes {
-        add(&e.v, membrane::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
-    }
-    for e in &el.hinges {
-        add(&e.v, hinge::eval(e.model, &e.rest, &e.positions(x), Filter::Exact).1.as_slice());
-    }
-    for i in 0..el.quadratic.len() {
-        let (vs, ws) = el.quadratic.stencil(i);
-        let r = el.quadratic.k[i] * el.quadratic.laplacian(i, x);
-        let gl: Vec<f64> = ws.iter().flat_map(|&w| (w * r).to_array()).collect();
-        add(vs, &gl);
-    }
-    for e in &el.gaussian {
-        add(&e.v, gaussian_bending::eval(e, &gather(x, &e.v), Filter::Exact).1.as_slice());
-    }
-    for e in &el.tets {
-        add(&e.v, tet::eval(e.model, e.lame, &e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
-    }
-    for e in &el.cells {
-        add(&e.v, cell::eval(&e.rest, &gather(x, &e.v), Filter::Exact).1.as_slice());
-    }
-    for e in &el.springs {
-        let d = spring::gradient(e.k, x[e.v[0] as usize], x[e.v[1] as usize]);
-        add(&e.v, &[d.x, d.y, d.z, -d.x, -d.y, -d.z]);
-    }
-    for e in &el.vertex_anchors {
-        add(&e.v, spring::anchor_eval::<1, 3>(e.k, &e.w, &gather(x, &e.v), e.target).1.as_slice());
-    }
-    for e in &el.face_anchors {
-        add(&e.v, spring::anchor_eval::<3, 9>(e.k, &e.w, &gather(x, &e.v), e.target).1.as_slice());
-    }
-    for e in &el.face_springs {
-        add(&e.v, spring::anchor_eval::<4, 12>(e.k, &e.w, &gather(x, &e.v), e.target).1.as_slice());
-    }
+    el.terms().iter().for_each(|t| t.add_gradient(x, &mut g));
     g
 }
 
@@ -326,6 +83,8 @@ pub fn vertex_gradient(el: &Elements, x: &[DVec3]) -> Vec<DVec3> {
 mod tests {
     use super::*;
     use crate::mesh::{edges, grid, GridPattern};
+    use crate::physics::{gaussian_bending, QuadraticBending};
+    use crate::solve::pattern::NONE;
 
     /// The assembled gradient and Hessian at x against central differences of `part` (the
     /// energy) and of the assembled gradient, over every free DOF.

@@ -11,12 +11,10 @@
 //! `src/mesh/remesh/README.md`, "Iterations a remesh adds".)
 
 use super::constraints::{Constraints, KernelRows};
-use super::elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
 use super::newton::{solve_frame, FrameOutcome};
 use super::packed::{PackedPatch, PackedState};
 use super::settings::{SolveMode, SolverSettings};
 use super::SolveError;
-use crate::physics::GaussianElem;
 
 /// A kernel's rows are kept in the region's problem only with at least this fraction of their
 /// weight on free vertices.
@@ -126,22 +124,7 @@ fn sub_patch(packed: &PackedPatch, free: &[bool]) -> (PackedPatch, Vec<u32>) {
         }
         touches
     };
-    let membranes: Vec<usize> = (0..el.membranes.len()).filter(|&i| keep(&el.membranes[i].v)).collect();
-    // (a periodic seam's hinge also reads the two vertices of its image's period vector)
-    let hinges: Vec<usize> = (0..el.hinges.len())
-        .filter(|&i| match el.hinges[i] {
-            HingeElem { v, image: Some((a, b)), .. } => keep(&[v[0], v[1], v[2], v[3], a, b]),
-            HingeElem { v, image: None, .. } => keep(&v),
-        })
-        .collect();
-    let quadratic: Vec<usize> = (0..el.quadratic.len()).filter(|&i| keep(el.quadratic.stencil(i).0)).collect();
-    let gaussian: Vec<usize> = (0..el.gaussian.len()).filter(|&i| keep(&el.gaussian[i].v)).collect();
-    let tets: Vec<usize> = (0..el.tets.len()).filter(|&i| keep(&el.tets[i].v)).collect();
-    let cells: Vec<usize> = (0..el.cells.len()).filter(|&i| keep(&el.cells[i].v)).collect();
-    let springs: Vec<usize> = (0..el.springs.len()).filter(|&i| keep(&el.springs[i].v)).collect();
-    let va: Vec<usize> = (0..el.vertex_anchors.len()).filter(|&i| keep(&el.vertex_anchors[i].v)).collect();
-    let fa: Vec<usize> = (0..el.face_anchors.len()).filter(|&i| keep(&el.face_anchors[i].v)).collect();
-    let fs: Vec<usize> = (0..el.face_springs.len()).filter(|&i| keep(&el.face_springs[i].v)).collect();
+    let picked: Vec<Vec<usize>> = el.terms().iter().map(|t| t.select(&mut keep)).collect();
     let kernels: Vec<usize> = (0..packed.constraints.kernels.len())
         .filter(|&i| {
             let k = &packed.constraints.kernels[i];
@@ -159,37 +142,7 @@ fn sub_patch(packed: &PackedPatch, free: &[bool]) -> (PackedPatch, Vec<u32>) {
     let to = |v: u32| local[v as usize];
     let arr = |v: &[u32; 3]| v.map(to);
 
-    let q = &el.quadratic;
-    let mut quadratic_sub = crate::physics::QuadraticBending::default();
-    if !quadratic.is_empty() {
-        quadratic_sub.start.push(0);
-    }
-    for &i in &quadratic {
-        let (vs, ws) = q.stencil(i);
-        quadratic_sub.v.extend(vs.iter().map(|&v| to(v)));
-        quadratic_sub.w.extend_from_slice(ws);
-        quadratic_sub.start.push(quadratic_sub.v.len() as u32);
-        quadratic_sub.k.push(q.k[i]);
-        quadratic_sub.area.push(q.area[i]);
-    }
-    let sub = Elements {
-        membranes: membranes.iter().map(|&i| MembraneElem { v: arr(&el.membranes[i].v), ..el.membranes[i] }).collect(),
-        hinges: hinges
-            .iter()
-            .map(|&i| {
-                let h = el.hinges[i];
-                HingeElem { v: h.v.map(to), image: h.image.map(|(a, b)| (to(a), to(b))), ..h }
-            })
-            .collect(),
-        quadratic: quadratic_sub,
-        gaussian: gaussian.iter().map(|&i| GaussianElem { v: arr(&el.gaussian[i].v), ..el.gaussian[i] }).collect(),
-        tets: tets.iter().map(|&i| TetElem { v: el.tets[i].v.map(to), ..el.tets[i] }).collect(),
-        cells: cells.iter().map(|&i| CellElem { v: el.cells[i].v.map(to), ..el.cells[i] }).collect(),
-        springs: springs.iter().map(|&i| SpringElem { v: el.springs[i].v.map(to), ..el.springs[i] }).collect(),
-        vertex_anchors: anchors(&el.vertex_anchors, &va, to),
-        face_anchors: anchors(&el.face_anchors, &fa, to),
-        face_springs: anchors(&el.face_springs, &fs, to),
-    };
+    let sub = el.pick(&picked, &to);
 
     let s = &packed.state;
     let mut state = PackedState {
@@ -230,10 +183,6 @@ fn sub_patch(packed: &PackedPatch, free: &[bool]) -> (PackedPatch, Vec<u32>) {
         load_held: false,
     };
     (sub, map)
-}
-
-fn anchors<const N: usize>(all: &[AnchorElem<N>], which: &[usize], to: impl Fn(u32) -> u32) -> Vec<AnchorElem<N>> {
-    which.iter().map(|&i| AnchorElem { v: all[i].v.map(&to), ..all[i] }).collect()
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@
 mod constrained;
 pub mod constraints;
 pub mod eigen;
+pub mod element;
 pub mod elements;
 pub mod error;
 pub mod eval;
@@ -16,12 +17,13 @@ pub mod ordering;
 pub mod packed;
 pub mod pattern;
 mod progress;
+pub mod scatter;
 pub mod settings;
 pub mod settle;
 pub mod stability;
 mod trust_region;
 
-pub use elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, SpringElem, TetElem};
+pub use elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, PinElem, SpringElem, TetElem};
 pub use error::SolveError;
 pub use newton::{solve_frame, FrameOutcome, SolveCounters};
 pub use packed::{PackedPatch, PackedState, SolverCache};

@@ -17,20 +17,11 @@ pub struct Pattern {
     pub row_idx: Vec<u32>,
     /// Position of each column's diagonal entry in `row_idx`.
     pub diag: Vec<u32>,
-    /// Scatter maps: for element e with N local DOFs, N(N+1)/2 value positions (lower
-    /// triangle of the local matrix, row-major: p >= q), NONE where a DOF is fixed.
-    pub membranes: Vec<u32>,
-    pub hinges: Vec<u32>,
-    /// Quadratic bending: per element, per stencil pair (a, b <= a), per coordinate.
-    pub quadratic: Vec<u32>,
-    /// The quadratic element's Gaussian term, per triangle.
-    pub gaussian: Vec<u32>,
-    pub tets: Vec<u32>,
-    pub cells: Vec<u32>,
-    pub springs: Vec<u32>,
-    pub vertex_anchors: Vec<u32>,
-    pub face_anchors: Vec<u32>,
-    pub face_springs: Vec<u32>,
+    /// Scatter maps, one per registered kind (`Elements::terms`): for element e with N local
+    /// DOFs, N(N+1)/2 value positions (lower triangle of the local matrix, row-major: p >= q),
+    /// NONE where a DOF is fixed; the quadratic kind per stencil pair (a, b <= a), per
+    /// coordinate.
+    pub maps: Vec<Vec<u32>>,
     /// Elimination order of the free DOFs (nested dissection of the vertices): order[k] is
     /// the DOF eliminated k-th.
     pub order: Vec<u32>,
@@ -90,15 +81,8 @@ impl Pattern {
                 }
             }
         };
-        elements.membranes.iter().for_each(|e| link(&e.v));
-        elements.hinges.iter().for_each(|e| link(&e.v));
-        (0..elements.quadratic.len()).for_each(|i| link(elements.quadratic.stencil(i).0));
-        elements.gaussian.iter().for_each(|e| link(&e.v));
-        elements.tets.iter().for_each(|e| link(&e.v));
-        elements.cells.iter().for_each(|e| link(&e.v));
-        elements.springs.iter().for_each(|e| link(&e.v));
-        elements.face_anchors.iter().for_each(|e| link(&e.v));
-        elements.face_springs.iter().for_each(|e| link(&e.v));
+        let terms = elements.terms();
+        terms.iter().for_each(|t| t.link(&mut link));
         for (v, a) in adj.iter_mut().enumerate() {
             a.push(v as u32); // every free DOF has a diagonal entry
             a.sort_unstable();
@@ -153,35 +137,8 @@ impl Pattern {
                 }
             }
         }
-        let mut p = Pattern {
-            dof,
-            n: n as usize,
-            col_ptr,
-            row_idx,
-            diag,
-            membranes: Vec::new(),
-            hinges: Vec::new(),
-            quadratic: Vec::new(),
-            gaussian: Vec::new(),
-            tets: Vec::new(),
-            cells: Vec::new(),
-            springs: Vec::new(),
-            vertex_anchors: Vec::new(),
-            face_anchors: Vec::new(),
-            face_springs: Vec::new(),
-            order,
-        };
-        p.membranes = elements.membranes.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.hinges = elements.hinges.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.quadratic =
-            (0..elements.quadratic.len()).flat_map(|i| p.stencil_map(elements.quadratic.stencil(i).0)).collect();
-        p.gaussian = elements.gaussian.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.tets = elements.tets.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.cells = elements.cells.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.springs = elements.springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.vertex_anchors = elements.vertex_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.face_anchors = elements.face_anchors.iter().flat_map(|e| p.element_map(&e.v)).collect();
-        p.face_springs = elements.face_springs.iter().flat_map(|e| p.element_map(&e.v)).collect();
+        let mut p = Pattern { dof, n: n as usize, col_ptr, row_idx, diag, maps: Vec::new(), order };
+        p.maps = terms.iter().map(|t| t.scatter_map(&p)).collect();
         p
     }
 
@@ -197,7 +154,7 @@ impl Pattern {
         self.position_of(a, b).expect("pattern holds every element pair")
     }
 
-    fn element_map(&self, verts: &[u32]) -> Vec<u32> {
+    pub(crate) fn element_map(&self, verts: &[u32]) -> Vec<u32> {
         let n = 3 * verts.len();
         let mut out = Vec::with_capacity(n * (n + 1) / 2);
         for p in 0..n {
@@ -223,7 +180,7 @@ impl Pattern {
 
     /// Scatter map of a stencil whose Hessian is (a scalar matrix) x I3: positions of the
     /// pairs (a, b <= a), coordinate by coordinate.
-    fn stencil_map(&self, verts: &[u32]) -> Vec<u32> {
+    pub(crate) fn stencil_map(&self, verts: &[u32]) -> Vec<u32> {
         let mut out = Vec::with_capacity(3 * verts.len() * (verts.len() + 1) / 2);
         for (a, &va) in verts.iter().enumerate() {
             for &vb in &verts[..=a] {

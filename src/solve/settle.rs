@@ -11,12 +11,10 @@
 //! membrane energy 19x, and one run then converged to a folded state (dihedral angles 2.4 rad).
 
 use glam::{DMat3, DVec3};
-use nalgebra::{SMatrix, SVector};
 
 use super::constraints::Constraints;
+use super::element::Term;
 use super::elements::Elements;
-use crate::physics::psd::Filter;
-use crate::physics::{gaussian_bending, hinge, membrane};
 
 /// What a settle did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -36,13 +34,13 @@ const HALVINGS: u32 = 12;
 /// Conjugate-gradient iterations at most for the constraint correction.
 const KEEP_ITERATIONS: usize = 200;
 
-/// An element a vertex belongs to: membrane or hinge index, and the vertex's slot in it.
+/// An element a vertex belongs to: its kind (`Elements::terms`), its index, and the vertex's
+/// slot in it.
 #[derive(Clone, Copy)]
-enum Slot {
-    Membrane(u32, usize),
-    Hinge(u32, usize),
-    Quadratic(u32, usize),
-    Gaussian(u32, usize),
+struct Slot {
+    kind: u8,
+    element: u32,
+    slot: usize,
 }
 
 /// Settles the vertices `which` (packed indices; vertices with a prescribed coordinate or a
@@ -64,30 +62,18 @@ pub fn settle(
     let mut local = vec![u32::MAX; x.len()];
     free.iter().enumerate().for_each(|(i, &v)| local[v as usize] = i as u32);
     let mut slots: Vec<Vec<Slot>> = vec![Vec::new(); free.len()];
-    for (i, m) in el.membranes.iter().enumerate() {
-        for (k, &v) in m.v.iter().enumerate().filter(|(_, v)| local[**v as usize] != u32::MAX) {
-            slots[local[v as usize] as usize].push(Slot::Membrane(i as u32, k));
-        }
-    }
-    // (a periodic seam's hinges see an image of one vertex: left to the solve)
-    for (i, h) in el.hinges.iter().enumerate().filter(|(_, h)| h.image.is_none()) {
-        for (k, &v) in h.v.iter().enumerate().filter(|(_, v)| local[**v as usize] != u32::MAX) {
-            slots[local[v as usize] as usize].push(Slot::Hinge(i as u32, k));
-        }
-    }
-    for i in 0..el.quadratic.len() {
-        for (k, &v) in el.quadratic.stencil(i).0.iter().enumerate().filter(|(_, v)| local[**v as usize] != u32::MAX) {
-            slots[local[v as usize] as usize].push(Slot::Quadratic(i as u32, k));
-        }
-    }
-    for (i, e) in el.gaussian.iter().enumerate() {
-        for (k, &v) in e.v.iter().enumerate().filter(|(_, v)| local[**v as usize] != u32::MAX) {
-            slots[local[v as usize] as usize].push(Slot::Gaussian(i as u32, k));
-        }
+    // The kinds that settle (the shell's own energies) name their slots.
+    let terms = el.terms();
+    for (kind, t) in terms.iter().enumerate() {
+        t.settle_slots(&mut |element, slot, v| {
+            if local[v as usize] != u32::MAX {
+                slots[local[v as usize] as usize].push(Slot { kind: kind as u8, element, slot });
+            }
+        });
     }
     let energy_of = |x: &[DVec3]| -> f64 {
         let mut seen = std::collections::BTreeSet::new();
-        slots.iter().flatten().filter(|s| seen.insert(key(**s))).map(|s| slot_energy(el, x, *s)).sum()
+        slots.iter().flatten().filter(|s| seen.insert((s.kind, s.element))).map(|s| slot_energy(&terms, x, *s)).sum()
     };
     let mut out = Settled { vertices: free.len(), energy_before: energy_of(x), ..Default::default() };
     let scale = mean_edge(el, x, &local);
@@ -96,7 +82,7 @@ pub fn settle(
         out.sweeps += 1;
         let mut largest = 0.0f64;
         for (i, &v) in free.iter().enumerate() {
-            largest = largest.max(relax_vertex(el, x, v as usize, &slots[i]));
+            largest = largest.max(relax_vertex(&terms, x, v as usize, &slots[i]));
         }
         if largest < STEP_TOL * scale {
             break;
@@ -164,60 +150,15 @@ fn keep(constraints: &Constraints, free: &[u32], local: &[u32], start: &[DVec3],
     }
 }
 
-fn key(s: Slot) -> (u8, u32) {
-    match s {
-        Slot::Membrane(i, _) => (0, i),
-        Slot::Hinge(i, _) => (1, i),
-        Slot::Quadratic(i, _) => (2, i),
-        Slot::Gaussian(i, _) => (3, i),
-    }
-}
-
-fn slot_energy(el: &Elements, x: &[DVec3], s: Slot) -> f64 {
-    match s {
-        Slot::Membrane(i, _) => {
-            let m = &el.membranes[i as usize];
-            membrane::energy(m.model, m.lame, &m.rest, &m.v.map(|v| x[v as usize]))
-        }
-        Slot::Hinge(i, _) => {
-            let h = &el.hinges[i as usize];
-            hinge::energy(h.model, &h.rest, &h.positions(x))
-        }
-        Slot::Quadratic(i, _) => el.quadratic.element_energy(i as usize, x),
-        Slot::Gaussian(i, _) => {
-            let e = &el.gaussian[i as usize];
-            gaussian_bending::energy(e, &e.v.map(|v| x[v as usize]))
-        }
-    }
+fn slot_energy(terms: &[&dyn Term], x: &[DVec3], s: Slot) -> f64 {
+    terms[s.kind as usize].element_energy(s.element as usize, x)
 }
 
 /// One projected Newton step on vertex v, backtracked on its elements' energy; the step taken.
-fn relax_vertex(el: &Elements, x: &mut [DVec3], v: usize, slots: &[Slot]) -> f64 {
+fn relax_vertex(terms: &[&dyn Term], x: &mut [DVec3], v: usize, slots: &[Slot]) -> f64 {
     let (mut g, mut h) = (DVec3::ZERO, DMat3::ZERO);
     for &s in slots {
-        let (gv, hv) = match s {
-            Slot::Membrane(i, k) => {
-                let m = &el.membranes[i as usize];
-                let (_, ge, he) = membrane::eval(m.model, m.lame, &m.rest, &m.v.map(|v| x[v as usize]), Filter::Exact);
-                block(&ge, &he, k)
-            }
-            Slot::Hinge(i, k) => {
-                let e = &el.hinges[i as usize];
-                let (_, ge, he) = hinge::eval(e.model, &e.rest, &e.positions(x), Filter::Exact);
-                block(&ge, &he, k)
-            }
-            Slot::Quadratic(i, k) => {
-                let q = &el.quadratic;
-                let w = q.stencil(i as usize).1[k];
-                let kw = q.k[i as usize] * w;
-                (kw * q.laplacian(i as usize, x), DMat3::from_diagonal(DVec3::splat(kw * w)))
-            }
-            Slot::Gaussian(i, k) => {
-                let e = &el.gaussian[i as usize];
-                let (_, ge, he) = gaussian_bending::eval(e, &e.v.map(|v| x[v as usize]), Filter::Exact);
-                block(&ge, &he, k)
-            }
-        };
+        let (gv, hv) = terms[s.kind as usize].block(s.element as usize, s.slot, x);
         g += gv;
         h += hv;
     }
@@ -228,11 +169,11 @@ fn relax_vertex(el: &Elements, x: &mut [DVec3], v: usize, slots: &[Slot]) -> f64
         return 0.0;
     }
     let start = x[v];
-    let e0: f64 = slots.iter().map(|&s| slot_energy(el, x, s)).sum();
+    let e0: f64 = slots.iter().map(|&s| slot_energy(terms, x, s)).sum();
     let mut alpha = 1.0;
     for _ in 0..HALVINGS {
         x[v] = start + alpha * step;
-        let e: f64 = slots.iter().map(|&s| slot_energy(el, x, s)).sum();
+        let e: f64 = slots.iter().map(|&s| slot_energy(terms, x, s)).sum();
         if e < e0 {
             return alpha * step.length();
         }
@@ -256,14 +197,6 @@ fn projected_newton_step(h: DMat3, g: DVec3) -> Option<DVec3> {
     let coeffs = (q.transpose() * gv).zip_map(&eigen.eigenvalues, |c, l| -c / l.max(1e-6 * top));
     let s = q * coeffs;
     Some(DVec3::new(s.x, s.y, s.z))
-}
-
-/// The gradient and Hessian block of slot k of an element.
-fn block<const N: usize>(g: &SVector<f64, N>, h: &SMatrix<f64, N, N>, k: usize) -> (DVec3, DMat3) {
-    let o = 3 * k;
-    let gv = DVec3::new(g[o], g[o + 1], g[o + 2]);
-    let hv = DMat3::from_cols_array(&std::array::from_fn(|i| h[(o + i % 3, o + i / 3)]));
-    (gv, hv)
 }
 
 /// Mean length of the membrane edges at the settled vertices (the step tolerance's scale).
@@ -290,7 +223,7 @@ mod tests {
     use crate::mesh::{edges, grid, GridPattern};
     use crate::physics::hinge::HingeRest;
     use crate::physics::membrane::MembraneRest;
-    use crate::physics::{BendingElement, ConstitutiveModel, HingeModel, Lame, QuadraticBending};
+    use crate::physics::{gaussian_bending, BendingElement, ConstitutiveModel, HingeModel, Lame, QuadraticBending};
     use crate::solve::{HingeElem, MembraneElem};
 
     /// A flat 1 x 1 sheet, 6 x 6 cells, with its membranes and hinges or quadratic bending

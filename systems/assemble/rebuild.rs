@@ -5,8 +5,8 @@ use bevy_ecs::prelude::*;
 use glam::DVec3;
 use skinsim::model::*;
 use skinsim::physics::cell::VolumeElement;
-use skinsim::physics::{BendingElement, QuadraticBending};
-use skinsim::solve::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
+use skinsim::physics::BendingElement;
+use skinsim::solve::{AnchorElem, Elements, HingeElem, MembraneElem, PackedPatch, SpringElem, TetElem};
 
 use super::{ElementItems, LayerItems, LayerItemsItem};
 
@@ -90,10 +90,7 @@ pub(super) fn rebuild(
                 let stiffness: Vec<([u32; 4], f64)> = layer_hinges.map(|h| (h.v, h.rest.weight)).collect();
                 let rest_at = |i: u32| items.rest.get(index.vertices[i as usize]).expect("vertex").0;
                 let poisson = material.map_or(0.0, |m| m.poisson); // (a shell always has one)
-                let boundary = skinsim::mesh::boundary_vertices(&tris, n);
-                let (q, g) = QuadraticBending::plate(&tris, rest_at, &stiffness, &boundary, poisson);
-                el.quadratic.extend(q);
-                el.gaussian.extend(g);
+                el.add_plate(&tris, rest_at, &stiffness, n, poisson);
             } else {
                 el.hinges.extend(layer_hinges);
             }
@@ -101,25 +98,16 @@ pub(super) fn rebuild(
         if let (Some(lt), Some(m)) = (layer.tets, material) {
             tet_count += lt.entities().len();
             let mut tets = Vec::with_capacity(lt.entities().len());
-            let mut cells = std::collections::BTreeMap::<u32, Vec<usize>>::new();
+            let mut cell_of = Vec::with_capacity(lt.entities().len());
             for &t in lt.entities() {
                 if let Ok((tv, rest, scale, cell)) = items.tets.get(t) {
                     let lame = m.lame.scaled(scale.map_or(1.0, |s| s.0));
-                    if let (VolumeElement::Cell, Some(c)) = (m.volume_element, cell) {
-                        cells.entry(c.0).or_default().push(tets.len());
-                    }
+                    cell_of.push(cell.filter(|_| m.volume_element == VolumeElement::Cell).map(|c| c.0));
                     tets.push(TetElem { v: tv.0.map(|e| idx(&e)), rest: rest.0, model: m.model, lame });
                 }
             }
             // Cells take their tets' lambda terms (physics::cell).
-            for members in cells.values() {
-                let group: Vec<TetElem> = members.iter().map(|&i| tets[i]).collect();
-                if let Some(c) = CellElem::from_tets(&group) {
-                    el.cells.push(c);
-                    members.iter().for_each(|&i| tets[i].lame.lambda = 0.0);
-                }
-            }
-            el.tets.extend(tets);
+            el.add_volume(tets, &cell_of);
         }
         if let Some(ls) = layer.springs {
             for &s in ls.entities() {

@@ -1,0 +1,78 @@
+//! Quadratic bending (`physics::quadratic_bending`): one element per interior vertex, its
+//! stencil of variable length, so the kind is a `Term` of its own rather than a list of fixed
+//! `Element`s.
+
+use glam::{DMat3, DVec3};
+
+use crate::physics::psd::Filter;
+use crate::physics::QuadraticBending;
+use crate::solve::element::{Part, Term, TermList};
+use crate::solve::pattern::Pattern;
+use crate::solve::scatter::Scatter;
+
+impl Term for QuadraticBending {
+    fn part(&self) -> Part {
+        Part::Bending
+    }
+    fn link(&self, link: &mut dyn FnMut(&[u32])) {
+        (0..QuadraticBending::len(self)).for_each(|i| link(self.stencil(i).0));
+    }
+    fn scatter_map(&self, pattern: &Pattern) -> Vec<u32> {
+        (0..QuadraticBending::len(self)).flat_map(|i| pattern.stencil_map(self.stencil(i).0)).collect()
+    }
+    fn energy(&self, x: &[DVec3]) -> f64 {
+        QuadraticBending::energy(self, x)
+    }
+    fn assemble(&self, acc: &mut Scatter<'_>, map: &[u32], x: &[DVec3], _filter: Filter) -> f64 {
+        acc.quadratic(self, map, x)
+    }
+    fn add_gradient(&self, x: &[DVec3], g: &mut [DVec3]) {
+        for i in 0..QuadraticBending::len(self) {
+            let (vs, ws) = self.stencil(i);
+            let r = self.k[i] * self.laplacian(i, x);
+            for (&v, &w) in vs.iter().zip(ws) {
+                let gl = (w * r).to_array();
+                g[v as usize] += DVec3::new(gl[0], gl[1], gl[2]);
+            }
+        }
+    }
+    fn unit_energy(&self, _length: f64) -> f64 {
+        self.rigidity_sum()
+    }
+    fn select(&self, keep: &mut dyn FnMut(&[u32]) -> bool) -> Vec<usize> {
+        (0..QuadraticBending::len(self)).filter(|&i| keep(self.stencil(i).0)).collect()
+    }
+    fn settle_slots(&self, slot: &mut dyn FnMut(u32, usize, u32)) {
+        for i in 0..QuadraticBending::len(self) {
+            for (k, &v) in self.stencil(i).0.iter().enumerate() {
+                slot(i as u32, k, v);
+            }
+        }
+    }
+    fn element_energy(&self, i: usize, x: &[DVec3]) -> f64 {
+        QuadraticBending::element_energy(self, i, x)
+    }
+    fn block(&self, i: usize, k: usize, x: &[DVec3]) -> (DVec3, DMat3) {
+        let w = self.stencil(i).1[k];
+        let kw = self.k[i] * w;
+        (kw * self.laplacian(i, x), DMat3::from_diagonal(DVec3::splat(kw * w)))
+    }
+}
+
+impl TermList for QuadraticBending {
+    fn pick(&self, which: &[usize], to: &dyn Fn(u32) -> u32) -> Self {
+        let mut out = QuadraticBending::default();
+        if !which.is_empty() {
+            out.start.push(0);
+        }
+        for &i in which {
+            let (vs, ws) = self.stencil(i);
+            out.v.extend(vs.iter().map(|&v| to(v)));
+            out.w.extend_from_slice(ws);
+            out.start.push(out.v.len() as u32);
+            out.k.push(self.k[i]);
+            out.area.push(self.area[i]);
+        }
+        out
+    }
+}

@@ -1,0 +1,125 @@
+//! Scattering element derivatives into the cached pattern: a plain indexed add through each
+//! kind's scatter map (`Pattern::maps`). Elements are evaluated in parallel in fixed chunks;
+//! the scatter runs in element order, so results do not depend on the thread count.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::element::{Element, Local, Vertices};
+use super::pattern::{pairs, DOUBLE, NONE};
+use crate::physics::psd::Filter;
+use crate::physics::QuadraticBending;
+
+/// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
+pub(crate) const CHUNK: usize = 1024;
+
+/// The gradient over free DOFs and the Hessian's lower-triangle values being assembled, and
+/// the sum of element force magnitudes.
+pub struct Scatter<'a> {
+    pub(crate) dof: &'a [u32],
+    pub(crate) grad: &'a mut [f64],
+    pub(crate) values: &'a mut [f64],
+    pub(crate) force: f64,
+}
+
+impl Scatter<'_> {
+    /// Evaluates one element kind chunk by chunk; the next chunk is evaluated in parallel
+    /// while the previous one is scattered. Returns the kind's energy.
+    pub(crate) fn class<E: Element>(&mut self, elems: &[E], map: &[u32], x: &[DVec3], filter: Filter) -> f64 {
+        let np = pairs(E::Vertices::LEN);
+        debug_assert_eq!(map.len(), elems.len() * np);
+        let mut energy = 0.0;
+        // Two result buffers, reused: one being filled while the other is scattered.
+        let mut filling: Vec<E::Local> = Vec::with_capacity(CHUNK.min(elems.len()));
+        let mut ready: Vec<E::Local> = Vec::with_capacity(CHUNK.min(elems.len()));
+        let mut ready_start: Option<usize> = None;
+        for (ci, chunk) in elems.chunks(CHUNK).enumerate() {
+            rayon::join(
+                || chunk.par_iter().map(|e| e.eval(x, filter)).collect_into_vec(&mut filling),
+                || {
+                    if let Some(start) = ready_start {
+                        energy += self.scatter(&elems[start..], &map[start * np..], &ready);
+                    }
+                },
+            );
+            std::mem::swap(&mut filling, &mut ready);
+            ready_start = Some(ci * CHUNK);
+        }
+        if let Some(start) = ready_start {
+            energy += self.scatter(&elems[start..], &map[start * np..], &ready);
+        }
+        energy
+    }
+
+    fn scatter<E: Element>(&mut self, elems: &[E], map: &[u32], res: &[E::Local]) -> f64 {
+        let nv = E::Vertices::LEN;
+        let (n, np) = (3 * nv, pairs(nv));
+        let mut energy = 0.0;
+        for (i, l) in res.iter().enumerate() {
+            energy += l.energy();
+            self.force += l.gradient_norm();
+            let vs = elems[i].vertices();
+            let (vs, g) = (vs.as_ref(), l.gradient());
+            for p in 0..n {
+                let d = self.dof[3 * vs[p / 3] as usize + p % 3];
+                if d != NONE {
+                    self.grad[d as usize] += g[p];
+                }
+            }
+            let m = &map[i * np..(i + 1) * np];
+            let mut k = 0;
+            for p in 0..n {
+                for q in 0..=p {
+                    self.add(m[k], l.hessian(p, q));
+                    k += 1;
+                }
+            }
+        }
+        energy
+    }
+
+    #[inline]
+    fn add(&mut self, pos: u32, h: f64) {
+        if pos != NONE {
+            if pos & DOUBLE != 0 {
+                self.values[(pos & !DOUBLE) as usize] += 2.0 * h;
+            } else {
+                self.values[pos as usize] += h;
+            }
+        }
+    }
+
+    /// Quadratic bending: W = k / 2 |sum_j w_j x_j|^2, gradient k w_a r at vertex a, Hessian
+    /// k w_a w_b I3 (constant). Serial: a few flops per stencil pair.
+    pub(crate) fn quadratic(&mut self, q: &QuadraticBending, map: &[u32], x: &[DVec3]) -> f64 {
+        let (mut energy, mut m) = (0.0, 0);
+        for i in 0..q.len() {
+            let (vs, ws) = q.stencil(i);
+            let k = q.k[i];
+            let r = q.laplacian(i, x);
+            energy += 0.5 * k * r.length_squared();
+            let mut g2 = 0.0;
+            for (&v, &w) in vs.iter().zip(ws) {
+                let g = k * w * r;
+                g2 += g.length_squared();
+                for (c, gc) in g.to_array().into_iter().enumerate() {
+                    let d = self.dof[3 * v as usize + c];
+                    if d != NONE {
+                        self.grad[d as usize] += gc;
+                    }
+                }
+            }
+            self.force += g2.sqrt();
+            for (a, &wa) in ws.iter().enumerate() {
+                for &wb in &ws[..=a] {
+                    let h = k * wa * wb;
+                    for _ in 0..3 {
+                        self.add(map[m], h);
+                        m += 1;
+                    }
+                }
+            }
+        }
+        energy
+    }
+}
