@@ -9,12 +9,14 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use crate::physics::{ConstitutiveModel, HingeModel, HingeRest, Lame};
 
 mod anchors;
+mod keyframes;
 mod maps;
 mod motion;
 mod resources;
 mod rest;
 mod rig;
 pub use anchors::*;
+pub use keyframes::*;
 pub use maps::*;
 pub use motion::*;
 pub use resources::*;

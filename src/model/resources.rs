@@ -134,7 +134,7 @@ pub struct PatchReport {
     pub anchors: Option<super::AnchorReport>,
     /// The Settle stage's region solve before this frame's (remeshed layers with `local_solve`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub local_solve: Option<crate::solve::local::LocalReport>,
+    pub local_solve: Option<crate::solve::LocalReport>,
 }
 
 /// A patch's size in a frame, for its report.

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use bevy_ecs::prelude::*;
 use glam::{DQuat, DVec3};
 
-use super::motion::{Interpolation, Keyframes};
+use super::keyframes::{Interpolation, Keyframes};
 use crate::mesh::rig::{Asset, Pose, Skinning};
 use crate::mesh::subdivision::Stencil;
 

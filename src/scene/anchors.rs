@@ -3,29 +3,13 @@
 
 use glam::DVec3;
 
-use super::build::Builder;
-use super::built::{BuiltLayer, LayerMesh};
-use super::drivers::PatchContext;
+use super::built::{BuiltAnchors, BuiltLayer, LayerMesh};
+use super::context::{not_a_file, Builder, PatchContext};
 use super::schema::{AnchorSpec, PoseSpec};
 use super::SceneError;
 use crate::coupling::walk::{BodySurface, Projector, SurfacePoint};
 use crate::mesh::{self, bodies, SurfaceMesh};
-use crate::model::{AnchorMethod, Interpolation, Keyframes, LayerKind};
-
-/// Anchors bound at load (SI units): (skin vertex, body point, stiffness N/m) and (skin face,
-/// body point, stiffness) for the barycentres.
-#[derive(Clone, Debug)]
-pub struct BuiltAnchors {
-    pub skin: usize,
-    pub body: usize,
-    pub method: AnchorMethod,
-    pub slide: f64,
-    pub surface: BodySurface,
-    pub vertex: Vec<(u32, SurfacePoint, f64)>,
-    pub face: Vec<(u32, SurfacePoint, f64)>,
-    /// The farthest skin point from the body at load (m), reported.
-    pub bind_distance: f64,
-}
+use crate::model::{Interpolation, Keyframes, LayerKind};
 
 /// The most memory an articulation's precomputed poses may take (bytes).
 const MAX_PRECOMPUTED_BYTES: f64 = 4e9;
@@ -114,7 +98,7 @@ impl Builder {
             .map(|(i, f)| {
                 let full = self.dir.join(f);
                 let field = format!("{at}.files[{i}]");
-                if let Some(problem) = super::meshes::not_a_file(&full) {
+                if let Some(problem) = not_a_file(&full) {
                     return Err(SceneError::at_field(&full, &field, format!("file {problem}")));
                 }
                 let m = mesh::obj::load(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;

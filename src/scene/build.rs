@@ -2,12 +2,12 @@
 //! patch are built in `meshes`, `layers`, `drivers`, `couplings` and `anchors`.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::DVec3;
 
 use super::built::{BuiltLayer, BuiltPatch, BuiltScene};
-use super::drivers::PatchContext;
+use super::context::{Builder, PatchContext};
 use super::error::SceneError;
 use super::schema::*;
 
@@ -87,35 +87,13 @@ fn syntax_hint(text: &str, line: usize, col: usize) -> Option<String> {
     (opened < line).then(|| format!("the string opened at line {opened} runs to here: is its closing quote missing?"))
 }
 
-/// The longest name of a scene, patch or layer.
-const MAX_NAME: usize = 64;
 /// The perturbation's noise cell (m), at least and at most.
 const MIN_CELL: f64 = 1e-9;
 const MAX_CELL: f64 = 1e3;
 /// The longest simulated time (s): a time written to the outputs stays a finite number.
 const MAX_SCENE_TIME: f64 = 1e9;
 
-pub(super) struct Builder {
-    pub(super) file: PathBuf,
-    pub(super) dir: PathBuf,
-    /// The memory the layers built so far need to run (bytes, estimated: `meshes.rs`).
-    pub(super) memory: std::cell::Cell<f64>,
-    /// The scene's stated memory budget (bytes), if any.
-    pub(super) budget: std::cell::Cell<Option<f64>>,
-    /// What `check` and `run` tell the user beyond errors (`BuiltScene::notes`).
-    pub(super) notes: std::cell::RefCell<Vec<String>>,
-}
-
 impl Builder {
-    pub(super) fn err(&self, field: impl Into<String>, message: impl Into<String>) -> SceneError {
-        SceneError::at_field(&self.file, field, message)
-    }
-
-    /// A line for the user: an estimate, a measured distortion, input fixed with a warning.
-    pub(super) fn note(&self, line: String) {
-        self.notes.borrow_mut().push(line);
-    }
-
     fn build(&self, scene: Scene) -> Result<BuiltScene, SceneError> {
         if scene.patches.is_empty() {
             return Err(self.err("patches", "the scene is empty: it declares no patch"));
@@ -231,25 +209,6 @@ impl Builder {
 
     /// Names become output folders and file names: a safe character set, no path separator,
     /// no `..`, no hidden file.
-    pub(super) fn check_name(&self, field: impl Into<String>, name: &str) -> Result<(), SceneError> {
-        let safe = |c: char| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.');
-        let ok = (1..=MAX_NAME).contains(&name.len())
-            && name.chars().all(safe)
-            && !name.starts_with(['.', '-'])
-            && !name.contains("..");
-        if ok {
-            return Ok(());
-        }
-        Err(self.err(
-            field,
-            format!(
-                "\"{}\" is not a usable name: it names output folders and files, so it must be 1-{MAX_NAME} \
-                 letters, digits, '_', '-' or '.', not starting with '.' or '-'",
-                name.escape_debug()
-            ),
-        ))
-    }
-
     fn patch(&self, scene: &Scene, pi: usize, p: &PatchSpec, bodies: &[BuiltPatch]) -> Result<BuiltPatch, SceneError> {
         let at = format!("patches[{pi}] (\"{}\")", p.name);
         let len = scene.units.length.to_si();

@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use glam::{DVec2, DVec3};
 
 use super::schema::{Perturbation, Scene};
+use crate::coupling::walk::{BodySurface, SurfacePoint};
 use crate::mesh::select::SeamHinge;
 use crate::mesh::{SurfaceMesh, TetMesh};
-use crate::model::{LayerKind, WeightMap};
+use crate::model::{AnchorMethod, LayerKind, WeightMap};
 
 /// A validated scene with its meshes built, in SI units.
 #[derive(Clone, Debug)]
@@ -38,7 +39,7 @@ pub struct BuiltPatch {
     pub layers: Vec<BuiltLayer>,
     pub drivers: Vec<BuiltDriver>,
     pub couplings: Vec<BuiltCoupling>,
-    pub anchors: Option<super::anchors::BuiltAnchors>,
+    pub anchors: Option<BuiltAnchors>,
 }
 
 /// A coupling's kernels, clustered at load (SI units).
@@ -263,4 +264,19 @@ pub enum BuiltDriver {
         /// Per listed layer: the painted fraction over its rectangle.
         maps: Vec<Option<WeightMap>>,
     },
+}
+
+/// Anchors bound at load (SI units): (skin vertex, body point, stiffness N/m) and (skin face,
+/// body point, stiffness) for the barycentres.
+#[derive(Clone, Debug)]
+pub struct BuiltAnchors {
+    pub skin: usize,
+    pub body: usize,
+    pub method: AnchorMethod,
+    pub slide: f64,
+    pub surface: BodySurface,
+    pub vertex: Vec<(u32, SurfacePoint, f64)>,
+    pub face: Vec<(u32, SurfacePoint, f64)>,
+    /// The farthest skin point from the body at load (m), reported.
+    pub bind_distance: f64,
 }

@@ -6,8 +6,8 @@ use std::sync::Arc;
 
 use glam::{DVec2, DVec3};
 
-use super::build::Builder;
 use super::built::{BodyAsset, BuiltEmbedding, BuiltLayer, LayerMesh};
+use super::context::Builder;
 use super::schema::{RefineSpec, SkinningSpec};
 use super::SceneError;
 use crate::mesh::{self, rig, subdivision, uv_islands, SurfaceMesh};
@@ -40,7 +40,7 @@ impl Builder {
             return Err(self.err(field, "a glTF mesh is a body: use it for a kinematic layer or a `Body`"));
         }
         let full = self.dir.join(path);
-        if let Some(problem) = super::meshes::not_a_file(&full) {
+        if let Some(problem) = super::context::not_a_file(&full) {
             return Err(SceneError::at_field(&full, field, format!("mesh file {problem}")));
         }
         let fail = |e: &dyn std::fmt::Display| SceneError::at_field(&full, field, e.to_string());

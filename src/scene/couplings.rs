@@ -3,9 +3,9 @@
 
 use glam::DVec2;
 
-use super::build::Builder;
 use super::built::{BuiltCoupling, LayerMesh};
-use super::drivers::PatchContext;
+use super::context::Builder;
+use super::context::PatchContext;
 use super::schema::*;
 use super::SceneError;
 use crate::coupling::kernels;

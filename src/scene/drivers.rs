@@ -1,37 +1,15 @@
 //! Building a patch's drivers: layer names resolved to indices, values checked and converted to
 //! SI, and the geometry each needs (selected vertices, ties, seams, attachment pairs, targets).
 
-use std::collections::HashMap;
-
 use glam::DVec3;
 
-use super::build::Builder;
 use super::built::{BuiltDriver, BuiltLayer, LayerMesh};
+use super::context::{Builder, PatchContext};
 use super::schema::*;
 use super::SceneError;
 use crate::mesh::{self, select::Region};
 use crate::model::LayerKind;
 use crate::physics::BendingElement;
-
-/// What a patch's drivers are built against: its layers (by name too), units and offset.
-pub(super) struct PatchContext<'a> {
-    pub scene: &'a Scene,
-    pub layers: &'a [BuiltLayer],
-    pub index: &'a HashMap<String, usize>,
-    /// Metres and pascals per scene unit.
-    pub len: f64,
-    pub stress: f64,
-    /// Where the patch sits (m).
-    pub offset: DVec3,
-}
-
-impl PatchContext<'_> {
-    /// The index of the layer named `name`, or an error at `field`.
-    pub(super) fn find(&self, builder: &Builder, field: String, name: &str) -> Result<usize, SceneError> {
-        let missing = || builder.err(field, format!("no layer named \"{name}\" in this patch"));
-        self.index.get(name).copied().ok_or_else(missing)
-    }
-}
 
 impl Builder {
     /// One driver, `dat` its field path.

@@ -5,8 +5,8 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::build::Builder;
 use super::built::{BuiltLayer, LayerMesh};
+use super::context::Builder;
 use super::schema::*;
 use super::SceneError;
 use crate::mesh;
@@ -415,7 +415,7 @@ impl Builder {
     /// Loads a greyscale map (relative to the scene file) spanning the mesh's material rectangle.
     pub(super) fn weight_map(&self, field: &str, path: &str, mesh: &LayerMesh) -> Result<WeightMap, SceneError> {
         let full = self.dir.join(path);
-        if let Some(problem) = super::meshes::not_a_file(&full) {
+        if let Some(problem) = super::context::not_a_file(&full) {
             return Err(SceneError::at_field(&full, field, format!("cannot read the map image: {problem}")));
         }
         let img = image::open(&full)

@@ -5,8 +5,8 @@ use std::collections::HashMap;
 
 use glam::{DVec2, DVec3};
 
-use super::build::Builder;
 use super::built::{BuiltLayer, LayerMesh, SlabGrid};
+use super::context::{not_a_file, Builder};
 use super::schema::*;
 use super::SceneError;
 use crate::mesh;
@@ -517,17 +517,6 @@ fn halves_twice(e: mesh::CoarseningError, len: f64) -> String {
         e.bottom / len,
         e.top / len
     )
-}
-
-/// Why an asset path is not a readable file (None when it is one): not found, a directory, or
-/// not a regular file (a device or a pipe).
-pub(super) fn not_a_file(path: &std::path::Path) -> Option<String> {
-    match std::fs::metadata(path) {
-        Err(_) => Some(format!("not found: {}", path.display())),
-        Ok(m) if m.is_dir() => Some(format!("{} is a directory", path.display())),
-        Ok(m) if !m.is_file() => Some(format!("{} is not a regular file", path.display())),
-        Ok(_) => None,
-    }
 }
 
 #[cfg(test)]

@@ -4,8 +4,8 @@
 use glam::{DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 
-use super::build::Builder;
 use super::built::LayerMesh;
+use super::context::Builder;
 use super::schema::{MapSource, PropertiesSpec};
 use super::SceneError;
 use crate::model::{ChannelMap, LayerProperties, RgbMap};
@@ -64,7 +64,7 @@ impl Builder {
 
     fn png_map(&self, field: &str, path: &str, lo: DVec2, hi: DVec2) -> Result<RgbMap, SceneError> {
         let full = self.dir.join(path);
-        if let Some(problem) = super::meshes::not_a_file(&full) {
+        if let Some(problem) = super::context::not_a_file(&full) {
             return Err(SceneError::at_field(&full, field, format!("cannot read the map image: {problem}")));
         }
         let img = image::open(&full)

@@ -262,7 +262,7 @@ fn spawn_drivers(
 fn spawn_anchors(
     world: &mut World,
     p: &BuiltPatch,
-    a: &super::anchors::BuiltAnchors,
+    a: &super::built::BuiltAnchors,
     layers: &[Entity],
     layer_vertices: &[Vec<Entity>],
 ) {

@@ -3,8 +3,8 @@
 
 use glam::{DVec2, DVec3};
 
-use super::build::Builder;
 use super::built::{BuiltTarget, LayerMesh};
+use super::context::Builder;
 use super::schema::{BlendTargetSpec, TargetShape};
 use super::SceneError;
 use crate::mesh;
@@ -82,7 +82,7 @@ impl Builder {
                 TargetShape::Obj(path) => {
                     let full = self.dir.join(path);
                     let field = format!("{tat}.shape");
-                    if let Some(problem) = super::meshes::not_a_file(&full) {
+                    if let Some(problem) = super::context::not_a_file(&full) {
                         return Err(SceneError::at_field(&full, &field, format!("target file {problem}")));
                     }
                     let m =

@@ -18,9 +18,9 @@ use glam::DVec3;
 use super::constraints::Constraints;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
+use super::iteration::{correction, line_search, step, FrameOutcome, FrameStart, ARMIJO, MAX_ESCAPES, ROUND_OFF};
 use super::kkt::KktSystem;
 use super::linear::symmetric_product_into;
-use super::newton::{line_search, step, FrameOutcome, FrameStart, ARMIJO, MAX_ESCAPES, ROUND_OFF};
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::progress::{Progress, PROGRESS};
@@ -342,38 +342,6 @@ fn second_order_correction(
         return true;
     }
     correction(packed, pattern, kkt, constraints, &x0, dx, phi_merit + ARMIJO * merit_slope, merit)
-}
-
-/// The full step `dx` from `x0` plus a correction back onto the constraints (one more solve with
-/// the last factorization): true when its merit is at most `target` (the state moved), false
-/// with the state back at `x0`.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn correction(
-    packed: &mut PackedPatch,
-    pattern: &Pattern,
-    kkt: &mut KktSystem,
-    constraints: &Constraints,
-    x0: &[DVec3],
-    dx: &[f64],
-    target: f64,
-    merit: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
-) -> bool {
-    if !constraints.is_empty() {
-        step(&mut packed.state.x, x0, &pattern.dof, dx, 1.0);
-        let c: Vec<f64> = constraints.values(&packed.state.x).iter().flat_map(|v| v.to_array()).collect();
-        let mut correction = vec![0.0; dx.len()];
-        if kkt.correct(&c, &mut correction).is_ok() {
-            let corrected: Vec<f64> = dx.iter().zip(&correction).map(|(a, b)| a + b).collect();
-            step(&mut packed.state.x, x0, &pattern.dof, &corrected, 1.0);
-            let value = merit(&energy(&packed.elements, &packed.state.x), &packed.state.x);
-            if value.is_finite() && value <= target {
-                tracing::trace!("second-order correction taken");
-                return true;
-            }
-        }
-    }
-    packed.state.x.copy_from_slice(x0);
-    false
 }
 
 #[cfg(test)]

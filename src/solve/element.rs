@@ -8,11 +8,9 @@
 //! so results do not depend on the thread count.
 
 use glam::{DMat3, DVec3};
-use nalgebra::{SMatrix, SVector};
 use rayon::prelude::*;
 
-use super::pattern::Pattern;
-use super::scatter::{Scatter, CHUNK};
+use super::scatter::{Local, Scatter, Vertices, CHUNK};
 use crate::physics::psd::Filter;
 
 /// The energy part a kind reports (`EnergyParts`, the stats' `energy_*` columns).
@@ -26,43 +24,12 @@ pub enum Part {
     Springs,
 }
 
-/// An element's vertices: `[u32; NV]`.
-pub trait Vertices: Copy + AsRef<[u32]> + AsMut<[u32]> + Send + Sync {
-    const LEN: usize;
-}
-
-impl<const NV: usize> Vertices for [u32; NV] {
-    const LEN: usize = NV;
-}
-
-/// Energy, gradient and Hessian of an element with N = 3 NV coordinates.
-pub type Derivatives<const N: usize> = (f64, SVector<f64, N>, SMatrix<f64, N, N>);
-
-/// An element's energy, gradient and Hessian over its 3 NV coordinates.
-pub trait Local: Send + Sync {
-    fn energy(&self) -> f64;
-    fn gradient(&self) -> &[f64];
-    fn gradient_norm(&self) -> f64;
-    fn hessian(&self, p: usize, q: usize) -> f64;
-}
-
-impl<const N: usize> Local for (f64, SVector<f64, N>, SMatrix<f64, N, N>) {
-    #[inline]
-    fn energy(&self) -> f64 {
-        self.0
-    }
-    #[inline]
-    fn gradient(&self) -> &[f64] {
-        self.1.as_slice()
-    }
-    #[inline]
-    fn gradient_norm(&self) -> f64 {
-        self.1.norm()
-    }
-    #[inline]
-    fn hessian(&self, p: usize, q: usize) -> f64 {
-        self.2[(p, q)]
-    }
+/// How an element's coordinates couple: every pair of its 3 NV coordinates, or only the same
+/// coordinate of each pair of vertices (a Hessian of the form K (x) I3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coupling {
+    Full,
+    PerCoordinate,
 }
 
 /// One element of a kind with a fixed number of vertices, its rest data inside it.
@@ -98,10 +65,12 @@ pub trait Element: Copy + Send + Sync {
 /// Term` per kind).
 pub trait Term: Sync {
     fn part(&self) -> Part;
-    /// Calls `link` with each element's vertex list (the pattern's adjacency).
-    fn link(&self, link: &mut dyn FnMut(&[u32]));
-    /// The kind's scatter map into `pattern` (`Pattern::maps`).
-    fn scatter_map(&self, pattern: &Pattern) -> Vec<u32>;
+    /// Calls `each` with each element's vertex list (the pattern's adjacency and scatter maps).
+    fn stencils(&self, each: &mut dyn FnMut(&[u32]));
+    /// How an element's vertices couple in the Hessian (its scatter map's layout).
+    fn coupling(&self) -> Coupling {
+        Coupling::Full
+    }
     fn energy(&self, x: &[DVec3]) -> f64;
     /// Adds gradients and Hessians through `map`; returns the kind's energy.
     fn assemble(&self, acc: &mut Scatter<'_>, map: &[u32], x: &[DVec3], filter: Filter) -> f64;
@@ -146,17 +115,14 @@ impl<E: Element> Term for Vec<E> {
     fn part(&self) -> Part {
         E::PART
     }
-    fn link(&self, link: &mut dyn FnMut(&[u32])) {
-        self.iter().for_each(|e| link(e.vertices().as_ref()));
-    }
-    fn scatter_map(&self, pattern: &Pattern) -> Vec<u32> {
-        self.iter().flat_map(|e| pattern.element_map(e.vertices().as_ref())).collect()
+    fn stencils(&self, each: &mut dyn FnMut(&[u32])) {
+        self.iter().for_each(|e| each(e.vertices().as_ref()));
     }
     fn energy(&self, x: &[DVec3]) -> f64 {
         sum_chunks(self, |e| e.energy(x))
     }
     fn assemble(&self, acc: &mut Scatter<'_>, map: &[u32], x: &[DVec3], filter: Filter) -> f64 {
-        acc.class(self, map, x, filter)
+        acc.class(self, map, |e| e.vertices(), |e| e.eval(x, filter))
     }
     fn add_gradient(&self, x: &[DVec3], g: &mut [DVec3]) {
         for e in self {

@@ -11,8 +11,9 @@
 //! `src/mesh/remesh/README.md`, "Iterations a remesh adds".)
 
 use super::constraints::{Constraints, KernelRows};
-use super::newton::{solve_frame, FrameOutcome};
-use super::packed::{PackedPatch, PackedState};
+use super::frame::solve_frame;
+use super::iteration::FrameOutcome;
+use super::packed::{LocalReport, PackedPatch, PackedState};
 use super::settings::{SolveMode, SolverSettings};
 use super::SolveError;
 
@@ -21,20 +22,6 @@ use super::SolveError;
 const MIN_SHARE: f64 = 0.5;
 /// Newton iterations at most in the region's solve: a settle, not the frame's solve.
 const MAX_ITERATIONS: u32 = 50;
-
-/// What a region's solve did (the frame report's `local_solve`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
-pub struct LocalReport {
-    /// Free vertices, and the held ones around them in the small problem.
-    pub vertices: usize,
-    pub held: usize,
-    pub kernels: usize,
-    pub iterations: u32,
-    pub factorizations: u32,
-    pub converged: bool,
-    /// Wall time of the whole region solve, building included (ms).
-    pub ms: f64,
-}
 
 /// Solves the region `which` (packed vertices) of `packed` to equilibrium, the rest held. The
 /// positions of the region's free vertices are written back only when the solve succeeds; no

@@ -9,6 +9,8 @@ pub mod element;
 pub mod elements;
 pub mod error;
 pub mod eval;
+mod frame;
+mod iteration;
 pub mod kkt;
 pub mod linear;
 pub mod local;
@@ -25,6 +27,7 @@ mod trust_region;
 
 pub use elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, PinElem, SpringElem, TetElem};
 pub use error::SolveError;
-pub use newton::{solve_frame, FrameOutcome, SolveCounters};
-pub use packed::{PackedPatch, PackedState, SolverCache};
+pub use frame::solve_frame;
+pub use iteration::{FrameOutcome, SolveCounters};
+pub use packed::{LocalReport, PackedPatch, PackedState, SolverCache};
 pub use settings::{Globalization, KktMethod, LinearSolver, Precision, SolveMode, SolverSettings, StabilityTest};

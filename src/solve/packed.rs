@@ -26,12 +26,26 @@ pub struct PackedPatch {
     pub length_scale: f64,
     pub cache: SolverCache,
     /// What the Settle stage's region solve did this frame (issue 26 item 2), for the report.
-    pub local: Option<super::local::LocalReport>,
+    pub local: Option<LocalReport>,
     /// Whether this frame's load is the one the last solve was accepted under (`LoadHeld`,
     /// set by the Solve system): the frame is then converged once its residual is back within
     /// the one the load was accepted at (`SolverCache::accepted`; twice it when that was the
     /// stall test's floor, `constrained::held_level`), on a remeshed layer too.
     pub load_held: bool,
+}
+
+/// What a region's solve did (the frame report's `local_solve`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct LocalReport {
+    /// Free vertices, and the held ones around them in the small problem.
+    pub vertices: usize,
+    pub held: usize,
+    pub kernels: usize,
+    pub iterations: u32,
+    pub factorizations: u32,
+    pub converged: bool,
+    /// Wall time of the whole region solve, building included (ms).
+    pub ms: f64,
 }
 
 /// Per packed vertex: what Newton iterates on.

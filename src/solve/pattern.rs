@@ -1,12 +1,9 @@
 //! DOF numbering, the lower-triangular CSC pattern over free DOFs, and per-element scatter maps
 //! (computed once per topology so assembly is a plain indexed add).
 
+use super::element::Coupling;
 use super::elements::Elements;
-
-pub const NONE: u32 = u32::MAX;
-/// Set on a scatter position when two different local DOFs of an element are one shared
-/// (tied) DOF: the off-diagonal local entry lands twice on the global diagonal.
-pub const DOUBLE: u32 = 1 << 31;
+pub use super::scatter::{pairs, DOUBLE, NONE};
 
 #[derive(Clone, Debug)]
 pub struct Pattern {
@@ -25,12 +22,6 @@ pub struct Pattern {
     /// Elimination order of the free DOFs (nested dissection of the vertices): order[k] is
     /// the DOF eliminated k-th.
     pub order: Vec<u32>,
-}
-
-/// Number of stored local pairs of an element with `nv` vertices.
-pub const fn pairs(nv: usize) -> usize {
-    let n = 3 * nv;
-    n * (n + 1) / 2
 }
 
 impl Pattern {
@@ -82,7 +73,7 @@ impl Pattern {
             }
         };
         let terms = elements.terms();
-        terms.iter().for_each(|t| t.link(&mut link));
+        terms.iter().for_each(|t| t.stencils(&mut link));
         for (v, a) in adj.iter_mut().enumerate() {
             a.push(v as u32); // every free DOF has a diagonal entry
             a.sort_unstable();
@@ -138,7 +129,17 @@ impl Pattern {
             }
         }
         let mut p = Pattern { dof, n: n as usize, col_ptr, row_idx, diag, maps: Vec::new(), order };
-        p.maps = terms.iter().map(|t| t.scatter_map(&p)).collect();
+        p.maps = terms
+            .iter()
+            .map(|t| {
+                let mut map = Vec::new();
+                t.stencils(&mut |v| match t.coupling() {
+                    Coupling::Full => map.extend(p.element_map(v)),
+                    Coupling::PerCoordinate => map.extend(p.stencil_map(v)),
+                });
+                map
+            })
+            .collect();
         p
     }
 
@@ -154,7 +155,7 @@ impl Pattern {
         self.position_of(a, b).expect("pattern holds every element pair")
     }
 
-    pub(crate) fn element_map(&self, verts: &[u32]) -> Vec<u32> {
+    fn element_map(&self, verts: &[u32]) -> Vec<u32> {
         let n = 3 * verts.len();
         let mut out = Vec::with_capacity(n * (n + 1) / 2);
         for p in 0..n {
@@ -180,7 +181,7 @@ impl Pattern {
 
     /// Scatter map of a stencil whose Hessian is (a scalar matrix) x I3: positions of the
     /// pairs (a, b <= a), coordinate by coordinate.
-    pub(crate) fn stencil_map(&self, verts: &[u32]) -> Vec<u32> {
+    fn stencil_map(&self, verts: &[u32]) -> Vec<u32> {
         let mut out = Vec::with_capacity(3 * verts.len() * (verts.len() + 1) / 2);
         for (a, &va) in verts.iter().enumerate() {
             for &vb in &verts[..=a] {

@@ -5,13 +5,63 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::element::{Element, Local, Vertices};
-use super::pattern::{pairs, DOUBLE, NONE};
-use crate::physics::psd::Filter;
+use nalgebra::{SMatrix, SVector};
+
 use crate::physics::QuadraticBending;
 
 /// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
 pub(crate) const CHUNK: usize = 1024;
+
+/// A fixed coordinate: no free DOF, no scatter position.
+pub const NONE: u32 = u32::MAX;
+/// Set on a scatter position when two different local DOFs of an element are one shared
+/// (tied) DOF: the off-diagonal local entry lands twice on the global diagonal.
+pub const DOUBLE: u32 = 1 << 31;
+
+/// Number of stored local pairs of an element with `nv` vertices.
+pub const fn pairs(nv: usize) -> usize {
+    let n = 3 * nv;
+    n * (n + 1) / 2
+}
+
+/// An element's vertices: `[u32; NV]`.
+pub trait Vertices: Copy + AsRef<[u32]> + AsMut<[u32]> + Send + Sync {
+    const LEN: usize;
+}
+
+impl<const NV: usize> Vertices for [u32; NV] {
+    const LEN: usize = NV;
+}
+
+/// Energy, gradient and Hessian of an element with N = 3 NV coordinates.
+pub type Derivatives<const N: usize> = (f64, SVector<f64, N>, SMatrix<f64, N, N>);
+
+/// An element's energy, gradient and Hessian over its 3 NV coordinates.
+pub trait Local: Send + Sync {
+    fn energy(&self) -> f64;
+    fn gradient(&self) -> &[f64];
+    fn gradient_norm(&self) -> f64;
+    fn hessian(&self, p: usize, q: usize) -> f64;
+}
+
+impl<const N: usize> Local for Derivatives<N> {
+    #[inline]
+    fn energy(&self) -> f64 {
+        self.0
+    }
+    #[inline]
+    fn gradient(&self) -> &[f64] {
+        self.1.as_slice()
+    }
+    #[inline]
+    fn gradient_norm(&self) -> f64 {
+        self.1.norm()
+    }
+    #[inline]
+    fn hessian(&self, p: usize, q: usize) -> f64 {
+        self.2[(p, q)]
+    }
+}
 
 /// The gradient over free DOFs and the Hessian's lower-triangle values being assembled, and
 /// the sum of element force magnitudes.
@@ -23,22 +73,28 @@ pub struct Scatter<'a> {
 }
 
 impl Scatter<'_> {
-    /// Evaluates one element kind chunk by chunk; the next chunk is evaluated in parallel
-    /// while the previous one is scattered. Returns the kind's energy.
-    pub(crate) fn class<E: Element>(&mut self, elems: &[E], map: &[u32], x: &[DVec3], filter: Filter) -> f64 {
-        let np = pairs(E::Vertices::LEN);
+    /// Evaluates one element kind chunk by chunk (`eval`); the next chunk is evaluated in
+    /// parallel while the previous one is scattered. Returns the kind's energy.
+    pub(crate) fn class<E: Sync, V: Vertices, L: Local>(
+        &mut self,
+        elems: &[E],
+        map: &[u32],
+        verts: impl Fn(&E) -> V + Sync,
+        eval: impl Fn(&E) -> L + Sync,
+    ) -> f64 {
+        let np = pairs(V::LEN);
         debug_assert_eq!(map.len(), elems.len() * np);
         let mut energy = 0.0;
         // Two result buffers, reused: one being filled while the other is scattered.
-        let mut filling: Vec<E::Local> = Vec::with_capacity(CHUNK.min(elems.len()));
-        let mut ready: Vec<E::Local> = Vec::with_capacity(CHUNK.min(elems.len()));
+        let mut filling: Vec<L> = Vec::with_capacity(CHUNK.min(elems.len()));
+        let mut ready: Vec<L> = Vec::with_capacity(CHUNK.min(elems.len()));
         let mut ready_start: Option<usize> = None;
         for (ci, chunk) in elems.chunks(CHUNK).enumerate() {
             rayon::join(
-                || chunk.par_iter().map(|e| e.eval(x, filter)).collect_into_vec(&mut filling),
+                || chunk.par_iter().map(&eval).collect_into_vec(&mut filling),
                 || {
                     if let Some(start) = ready_start {
-                        energy += self.scatter(&elems[start..], &map[start * np..], &ready);
+                        energy += self.scatter(&elems[start..], &map[start * np..], &verts, &ready);
                     }
                 },
             );
@@ -46,19 +102,25 @@ impl Scatter<'_> {
             ready_start = Some(ci * CHUNK);
         }
         if let Some(start) = ready_start {
-            energy += self.scatter(&elems[start..], &map[start * np..], &ready);
+            energy += self.scatter(&elems[start..], &map[start * np..], &verts, &ready);
         }
         energy
     }
 
-    fn scatter<E: Element>(&mut self, elems: &[E], map: &[u32], res: &[E::Local]) -> f64 {
-        let nv = E::Vertices::LEN;
+    fn scatter<E, V: Vertices, L: Local>(
+        &mut self,
+        elems: &[E],
+        map: &[u32],
+        verts: &impl Fn(&E) -> V,
+        res: &[L],
+    ) -> f64 {
+        let nv = V::LEN;
         let (n, np) = (3 * nv, pairs(nv));
         let mut energy = 0.0;
         for (i, l) in res.iter().enumerate() {
             energy += l.energy();
             self.force += l.gradient_norm();
-            let vs = elems[i].vertices();
+            let vs = verts(&elems[i]);
             let (vs, g) = (vs.as_ref(), l.gradient());
             for p in 0..n {
                 let d = self.dof[3 * vs[p / 3] as usize + p % 3];

@@ -180,7 +180,7 @@ pub fn escape(
         let mut t = FIRST_STEP * length_scale;
         for _ in 0..TRIES {
             let mut trial = x.to_vec();
-            super::newton::step(&mut trial, x, dof, direction, sign * t / max);
+            super::iteration::step(&mut trial, x, dof, direction, sign * t / max);
             let e = energy_at(&trial);
             // (a NaN energy ends the search too)
             if e.is_nan() || e >= phi - noise {

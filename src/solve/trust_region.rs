@@ -9,12 +9,11 @@
 
 use glam::DVec3;
 
-use super::constrained::correction;
 use super::constraints::Constraints;
 use super::error::SolveError;
 use super::eval::{energy, EnergyParts};
+use super::iteration::{correction, step, FrameOutcome};
 use super::kkt::KktSystem;
-use super::newton::{step, FrameOutcome};
 use super::packed::PackedPatch;
 use super::pattern::Pattern;
 use super::progress::ADAPTIVE_SWITCH;

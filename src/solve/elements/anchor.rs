@@ -6,7 +6,8 @@ use glam::DVec3;
 
 use crate::physics::psd::Filter;
 use crate::physics::spring;
-use crate::solve::element::{gather, renumbered, Derivatives, Element, Part};
+use crate::solve::element::{gather, renumbered, Element, Part};
+use crate::solve::scatter::Derivatives;
 
 /// A spring from the point sum_i w_i x[v_i] to `target` (fixed during a solve; an anchor's is
 /// moved by the walk between frames).

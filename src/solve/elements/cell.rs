@@ -6,7 +6,8 @@ use glam::DVec3;
 use super::TetElem;
 use crate::physics::cell::{self, CellRest, Dilatation, CELL_TETS, CELL_VERTS};
 use crate::physics::psd::Filter;
-use crate::solve::element::{gather, renumbered, Derivatives, Element, Part};
+use crate::solve::element::{gather, renumbered, Element, Part};
+use crate::solve::scatter::Derivatives;
 
 #[derive(Clone, Copy, Debug)]
 pub struct CellElem {

@@ -4,7 +4,8 @@ use glam::DVec3;
 
 use crate::physics::gaussian_bending::{self, GaussianElem};
 use crate::physics::psd::Filter;
-use crate::solve::element::{gather, renumbered, Derivatives, Element, Part};
+use crate::solve::element::{gather, renumbered, Element, Part};
+use crate::solve::scatter::Derivatives;
 
 impl Element for GaussianElem {
     type Vertices = [u32; 3];

@@ -6,7 +6,8 @@ use glam::DVec3;
 use crate::physics::hinge::{self, HingeRest};
 use crate::physics::psd::Filter;
 use crate::physics::HingeModel;
-use crate::solve::element::{renumbered, Derivatives, Element, Part};
+use crate::solve::element::{renumbered, Element, Part};
+use crate::solve::scatter::Derivatives;
 
 #[derive(Clone, Copy, Debug)]
 pub struct HingeElem {

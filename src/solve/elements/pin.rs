@@ -7,7 +7,8 @@ use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
 
 use crate::physics::psd::Filter;
-use crate::solve::element::{renumbered, Derivatives, Element, Part};
+use crate::solve::element::{renumbered, Element, Part};
+use crate::solve::scatter::Derivatives;
 
 #[derive(Clone, Copy, Debug)]
 pub struct PinElem {

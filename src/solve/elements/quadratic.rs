@@ -6,19 +6,19 @@ use glam::{DMat3, DVec3};
 
 use crate::physics::psd::Filter;
 use crate::physics::QuadraticBending;
-use crate::solve::element::{Part, Term, TermList};
-use crate::solve::pattern::Pattern;
+use crate::solve::element::{Coupling, Part, Term, TermList};
 use crate::solve::scatter::Scatter;
 
 impl Term for QuadraticBending {
     fn part(&self) -> Part {
         Part::Bending
     }
-    fn link(&self, link: &mut dyn FnMut(&[u32])) {
-        (0..QuadraticBending::len(self)).for_each(|i| link(self.stencil(i).0));
+    fn stencils(&self, each: &mut dyn FnMut(&[u32])) {
+        (0..QuadraticBending::len(self)).for_each(|i| each(self.stencil(i).0));
     }
-    fn scatter_map(&self, pattern: &Pattern) -> Vec<u32> {
-        (0..QuadraticBending::len(self)).flat_map(|i| pattern.stencil_map(self.stencil(i).0)).collect()
+    /// (a Hessian k w_a w_b I3 per stencil pair)
+    fn coupling(&self) -> Coupling {
+        Coupling::PerCoordinate
     }
     fn energy(&self, x: &[DVec3]) -> f64 {
         QuadraticBending::energy(self, x)

@@ -5,7 +5,8 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::physics::psd::Filter;
 use crate::physics::spring;
-use crate::solve::element::{renumbered, Derivatives, Element, Part};
+use crate::solve::element::{renumbered, Element, Part};
+use crate::solve::scatter::Derivatives;
 
 #[derive(Clone, Copy, Debug)]
 pub struct SpringElem {

@@ -5,7 +5,8 @@ use glam::DVec3;
 use crate::physics::psd::Filter;
 use crate::physics::tet::{self, TetRest};
 use crate::physics::{ConstitutiveModel, Lame};
-use crate::solve::element::{gather, renumbered, Derivatives, Element, Part};
+use crate::solve::element::{gather, renumbered, Element, Part};
+use crate::solve::scatter::Derivatives;
 
 #[derive(Clone, Copy, Debug)]
 pub struct TetElem {

@@ -1,0 +1,47 @@
+//! A frame's solve: the patch's cached pattern and factorizations, and the loop its problem
+//! needs (`newton` without kernels, `constrained` with them).
+
+use super::constrained::newton_kkt;
+use super::error::SolveError;
+use super::iteration::FrameOutcome;
+use super::kkt::KktSystem;
+use super::linear::CholeskySolver;
+use super::newton::newton;
+use super::packed::PackedPatch;
+use super::pattern::Pattern;
+use super::settings::SolverSettings;
+
+/// Solves one frame in place on `packed.state.x` (prescribed coordinates already at their targets).
+/// Returns Err with a reason when the state becomes non-finite.
+pub fn solve_frame(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result<FrameOutcome, SolveError> {
+    let (pattern, mut chol) = match packed.cache.system.take() {
+        Some(system) => system,
+        None => {
+            let p = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
+            let s = CholeskySolver::analyze(&p);
+            (p, s)
+        }
+    };
+    if !packed.constraints.is_empty() {
+        let mut kkt = match packed.cache.kkt.take() {
+            Some(k) => k,
+            None => KktSystem::build(&pattern, &packed.constraints, settings.kkt),
+        };
+        let before = kkt.factorizations;
+        let result = newton_kkt(packed, &pattern, &mut kkt, settings, dt).map(|mut o| {
+            o.factorizations = (kkt.factorizations - before) as u32;
+            o
+        });
+        packed.cache.kkt = Some(kkt);
+        packed.cache.system = Some((pattern, chol));
+        return result;
+    }
+    chol.set_precision(settings.precision);
+    let before = chol.factorizations;
+    let result = newton(packed, &pattern, &mut chol, settings, dt).map(|mut o| {
+        o.factorizations = (chol.factorizations - before) as u32;
+        o
+    });
+    packed.cache.system = Some((pattern, chol));
+    result
+}
