@@ -21,11 +21,11 @@ fn main() {
             totals[stage as usize] += s.timing(stage);
         }
         total += s.total_ms();
-        iterations += s.patches.iter().map(|p| p.newton_iterations).sum::<u32>();
+        iterations += s.patches.iter().map(|p| p.outcome.iterations).sum::<u32>();
         for p in &s.patches {
-            inner[0] += p.solve_breakdown_ms.assemble_ms;
-            inner[1] += p.solve_breakdown_ms.factorize_ms;
-            inner[2] += p.solve_breakdown_ms.line_search_ms;
+            inner[0] += p.outcome.counters.assemble_ms;
+            inner[1] += p.outcome.counters.factorize_ms;
+            inner[2] += p.outcome.counters.line_search_ms;
         }
     }
     let frames = scene.scene.frames as f64;

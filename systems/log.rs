@@ -110,7 +110,8 @@ pub fn log_frame(
                     asset_uv: from_asset,
                 };
                 if let Err(e) = stage.add(&patch.name, &layer.name, remeshed, clock.frame, &f) {
-                    failure.0.get_or_insert(format!("cannot write the USD cache: {e}"));
+                    let (file, reason) = ("the USD cache".to_string(), e.to_string());
+                    failure.0.get_or_insert(Failure::Output { file, reason });
                 }
             }
             if let Some(rec) = rec {
@@ -127,7 +128,8 @@ pub fn log_frame(
                 let file = folder.join(format!("{:05}.obj", clock.frame));
                 let res = std::fs::create_dir_all(&folder).and_then(|_| mesh::obj::write(&file, &pos, &uv, &rm.tris));
                 if let Err(e) = res {
-                    failure.0.get_or_insert(format!("cannot write {}: {e}", file.display()));
+                    let (file, reason) = (file.display().to_string(), e.to_string());
+                    failure.0.get_or_insert(Failure::Output { file, reason });
                 }
             }
         }
@@ -140,9 +142,9 @@ pub fn log_frame(
         }
         for p in &report.patches {
             let base = format!("stats/{}", p.name);
-            let _ = rec.log(format!("{base}/energy"), &rerun::Scalars::new([p.energy]));
-            let _ = rec.log(format!("{base}/newton_iterations"), &rerun::Scalars::new([p.newton_iterations as f64]));
-            let _ = rec.log(format!("{base}/residual"), &rerun::Scalars::new([p.residual]));
+            let _ = rec.log(format!("{base}/energy"), &rerun::Scalars::new([p.outcome.energy]));
+            let _ = rec.log(format!("{base}/newton_iterations"), &rerun::Scalars::new([p.outcome.iterations as f64]));
+            let _ = rec.log(format!("{base}/residual"), &rerun::Scalars::new([p.outcome.residual]));
         }
         for stage in Stage::ALL {
             if stage != Stage::Log {

@@ -76,7 +76,7 @@ impl Simulation {
     }
 
     /// Why the simulation failed, if it did.
-    pub fn failure(&self) -> Option<String> {
+    pub fn failure(&self) -> Option<Failure> {
         self.world.resource::<SimFailure>().0.clone()
     }
 }

@@ -35,25 +35,18 @@ pub fn solve_patches(
             // (walking anchors change the load under held drivers)
             packed.load_held = p.held.is_some_and(|h| h.0) && p.anchors.is_none();
             let out = solve_frame(packed, p.settings, clock.dt);
-            let size = PatchSize {
-                vertices: p.index.vertices.len(),
-                faces: p.index.faces,
-                tets: p.index.tets,
-                inverted: packed.inverted_tets(),
-                constraints: packed.constraints.rows(),
-            };
+            let size = PatchSize { vertices: p.index.vertices.len(), faces: p.index.faces, tets: p.index.tets };
             (p.patch.name.clone(), size, out, p.anchors.copied(), local)
         })
         .collect();
     report.patches.clear();
     for (name, size, out, anchors, local) in outcomes {
         report.patches.push(match out {
-            Ok(outcome) => PatchReport { local_solve: local, ..PatchReport::solved(name, size, &outcome, anchors) },
-            Err(reason) => {
-                if failure.0.is_none() {
-                    failure.0 = Some(format!("frame {}: patch \"{name}\": {reason}", clock.frame));
-                }
-                PatchReport::failed(name, size, anchors)
+            Ok(outcome) => PatchReport { local_solve: local, ..PatchReport::solved(name, size, outcome, anchors) },
+            Err(error) => {
+                let report = PatchReport::failed(name.clone(), size, anchors);
+                failure.0.get_or_insert(Failure::Solve { frame: clock.frame, patch: name, error });
+                report
             }
         });
     }

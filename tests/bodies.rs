@@ -44,7 +44,7 @@ fn run(text: &str) -> Simulation {
     for frame in 1..=built.scene.frames {
         let s = sim.step();
         assert!(sim.failure().is_none(), "frame {frame}: {:?}", sim.failure());
-        assert!(s.patches.iter().all(|p| p.converged), "frame {frame}: {:?}", s.patches);
+        assert!(s.patches.iter().all(|p| p.outcome.converged), "frame {frame}: {:?}", s.patches);
     }
     sim
 }

@@ -8,7 +8,7 @@ use std::hash::{Hash, Hasher};
 
 use bevy_ecs::prelude::*;
 use common::*;
-use skinsim::model::{PatchReport, Position, Stage};
+use skinsim::model::{Failure, PatchReport, Position, Stage};
 use skinsim::scene::{load_str, BuiltScene};
 use skinsim_systems::log::{ObjExport, RerunSink};
 use skinsim_systems::log_read::RecordingIndex;
@@ -184,8 +184,13 @@ fn a_non_finite_state_stops_the_run_and_names_the_frame_and_patch() {
     }
     let stats = sim.step();
     let failure = sim.failure().expect("the NaN is reported");
-    assert!(failure.contains("frame 2") && failure.contains("\"strip\""), "{failure}");
-    assert!(!stats.patches[0].converged);
+    let Failure::Solve { frame, patch, error } = &failure else { panic!("{failure}") };
+    assert_eq!((*frame, patch.as_str()), (2, "strip"), "{failure}");
+    assert!(matches!(error, skinsim::solve::SolveError::NonFinite { .. }), "{error}");
+    // (the CLI's line, as before)
+    let line = failure.to_string();
+    assert!(line.starts_with("frame 2: patch \"strip\": non-finite"), "{line}");
+    assert!(!stats.patches[0].outcome.converged);
 }
 
 #[test]
@@ -282,7 +287,7 @@ fn implicit_euler_keeps_a_free_sheet_in_uniform_motion() {
     let start = sim.layer_positions("sheet", "sheet");
     for _ in 0..3 {
         let s = sim.step();
-        assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+        assert!(s.patches[0].outcome.converged, "{:?}", s.patches[0]);
     }
     let end = sim.layer_positions("sheet", "sheet");
     for (a, b) in start.iter().zip(&end) {
@@ -309,7 +314,7 @@ fn an_implicit_euler_step_lags_the_driven_edges() {
     let mut sim = Simulation::new(&scene);
     let start = sim.layer_positions("sheet", "sheet");
     let s = sim.step();
-    assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+    assert!(s.patches[0].outcome.converged, "{:?}", s.patches[0]);
     let end = sim.layer_positions("sheet", "sheet");
     // The driven edge moved by 1 % of the half width, 5 mm; the affine map moves x = 250 mm
     // by 2.5 mm (the grid spans x = 0 to 1 m).
@@ -331,7 +336,7 @@ fn converged_run(
     let mut total = 0;
     for _ in 0..frames {
         let s = sim.step();
-        assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+        assert!(s.patches[0].outcome.converged, "{:?}", s.patches[0]);
         total += count(&s.patches[0]);
     }
     (sim.layer_positions(patch, layer), total)
@@ -347,7 +352,7 @@ fn krylov_newton_reaches_the_direct_solution_with_fewer_factorizations() {
     let text = std::fs::read_to_string(scene_path("strip_wrinkles.ron")).unwrap();
     let text = text.replace("max_iterations: 60,", "max_iterations: 60, linear: Krylov(max_iterations: 30),");
     let krylov = load_str(&text, &scene_path("strip_wrinkles.ron")).unwrap();
-    let run = |scene: &BuiltScene| converged_run(scene, 12, ("strip", "film"), |p| p.factorizations);
+    let run = |scene: &BuiltScene| converged_run(scene, 12, ("strip", "film"), |p| p.outcome.factorizations);
     let ((a, fa), (b, fb)) = (run(&direct), run(&krylov));
     let worst = largest_difference(&a, &b);
     println!("factorizations: direct {fa}, Krylov {fb}; largest position difference {worst:.3e} m");
@@ -364,7 +369,7 @@ fn mixed_precision_newton_reaches_the_f64_solution() {
     assert_ne!(text, f32_text);
     let run = |text: &str| {
         let scene = load_str(text, &scene_path("examples/volume_slab.ron")).unwrap();
-        converged_run(&scene, 5, ("slab", "dermis"), |p| p.cg_iterations)
+        converged_run(&scene, 5, ("slab", "dermis"), |p| p.outcome.cg_iterations)
     };
     let ((a, cg64), (b, cg32)) = (run(&text), run(&f32_text));
     let worst = largest_difference(&a, &b);
@@ -389,9 +394,9 @@ fn the_linearized_euler_step_takes_one_factorization_per_frame() {
         for frame in 1..=scene.scene.frames {
             let s = sim.step();
             let p = &s.patches[0];
-            assert!(p.converged, "frame {frame}: {p:?}");
+            assert!(p.outcome.converged, "frame {frame}: {p:?}");
             if one_step {
-                assert_eq!((p.newton_iterations, p.factorizations), (1, 1), "frame {frame}");
+                assert_eq!((p.outcome.iterations, p.outcome.factorizations), (1, 1), "frame {frame}");
             }
         }
         sim.layer_positions("strip", "film").iter().map(|p| p.z.abs()).fold(0.0, f64::max)
@@ -423,7 +428,7 @@ fn a_joint_bends_a_finger_and_its_skin_follows() {
     let mut sim = Simulation::new(&scene);
     for frame in 1..=2 {
         let s = sim.step();
-        assert!(s.patches[0].converged, "frame {frame}: {:?}", s.patches[0]);
+        assert!(s.patches[0].outcome.converged, "frame {frame}: {:?}", s.patches[0]);
         let angle = (30.0 * frame as f64).to_radians();
         let bone: Vec<glam::DVec3> = sim.layer_points("finger", "bone").into_iter().map(|p| p.1).collect();
         for (p, r) in bone.iter().zip(&rest) {

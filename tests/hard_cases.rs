@@ -22,7 +22,7 @@ fn run_all_converged(scene: &skinsim::scene::BuiltScene) -> Simulation {
         let s = sim.step();
         assert!(sim.failure().is_none(), "{:?}", sim.failure());
         for p in &s.patches {
-            assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
+            assert!(p.outcome.converged && p.outcome.energy.is_finite(), "frame {frame}: {p:?}");
         }
     }
     sim

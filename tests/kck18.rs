@@ -90,7 +90,7 @@ fn case_15_walk_share_is_reported() {
     let walk: f64 = stats.iter().map(|s| s.timing(Stage::AnchorWalk)).sum();
     let total: f64 = stats.iter().map(|s| s.total_ms()).sum();
     println!("case 15 creature_quick: walk {:.1} ms of {:.0} ms ({:.2} %)", walk, total, 100.0 * walk / total);
-    assert!(stats.iter().all(|s| s.patches[0].converged), "every frame converges");
+    assert!(stats.iter().all(|s| s.patches[0].outcome.converged), "every frame converges");
     // (No time is asserted: the share is reported.) Every anchor took part in every walk.
     assert!(stats.iter().all(|s| report(s, "creature").anchors == 642 + 1280));
 }
@@ -101,14 +101,14 @@ fn case_15_walk_share_is_reported() {
 fn bending_is_an_option_on_the_anchored_skin() {
     let (sim, stats) = run(&load("kck18/elbow_bending_quick.ron"));
     assert!(sim.failure().is_none(), "{:?}", sim.failure());
-    assert!(stats.iter().all(|s| s.patches[0].converged));
+    assert!(stats.iter().all(|s| s.patches[0].outcome.converged));
     let last = &stats.last().unwrap().patches[0];
     assert!(
-        last.energy_bending > 0.01 * last.energy_membrane,
+        last.outcome.parts.bending > 0.01 * last.outcome.parts.membrane,
         "{} J vs {} J",
-        last.energy_bending,
-        last.energy_membrane
+        last.outcome.parts.bending,
+        last.outcome.parts.membrane
     );
     let (_, plain) = run(&load("kck18/elbow_quick.ron"));
-    assert_eq!(plain.last().unwrap().patches[0].energy_bending, 0.0, "off by default");
+    assert_eq!(plain.last().unwrap().patches[0].outcome.parts.bending, 0.0, "off by default");
 }

@@ -58,11 +58,15 @@ fn constrained_frames_converge_with_tiny_constraint_residual() {
             let p = &s.patches[0];
             println!(
                 "{projection}: frame {} iterations {} residual {:.2e} constraints {} violation {:.2e}",
-                s.frame, p.newton_iterations, p.residual, p.constraints, p.constraint_violation
+                s.frame,
+                p.outcome.iterations,
+                p.outcome.residual,
+                p.outcome.constraints,
+                p.outcome.constraint_violation
             );
-            assert!(p.converged, "{projection}: frame {} did not converge", s.frame);
-            assert!(p.constraints > 0);
-            assert!(p.constraint_violation < 1e-9, "violation {:.2e}", p.constraint_violation);
+            assert!(p.outcome.converged, "{projection}: frame {} did not converge", s.frame);
+            assert!(p.outcome.constraints > 0);
+            assert!(p.outcome.constraint_violation < 1e-9, "violation {:.2e}", p.outcome.constraint_violation);
         }
     }
 }
@@ -169,7 +173,7 @@ fn kernels_follow_a_retriangulated_layer() {
     println!("{changed} of {} kernels resampled", after.len());
     assert!(changed > 0);
     assert!(check_weights(&mut sim) > 0);
-    assert!(s.patches[0].converged && s.patches[0].constraint_violation < 1e-9);
+    assert!(s.patches[0].outcome.converged && s.patches[0].outcome.constraint_violation < 1e-9);
 }
 
 /// Issue 21, the trust-region globalization (`globalization: TrustRegion`) on a small buckling

@@ -39,7 +39,7 @@ fn stacked_layers_share_their_interfaces() {
     let unique = plane + 3 * plane + 3 * plane;
     let stats = sim.step();
     assert_eq!(stats.patches[0].vertices, unique);
-    assert!(stats.patches[0].converged, "{:?}", stats.patches[0]);
+    assert!(stats.patches[0].outcome.converged, "{:?}", stats.patches[0]);
     // Springs from the hypodermis' bottom plane only.
     let springs = sim.world.query::<&Spring>().iter(&sim.world).count();
     assert_eq!(springs, plane);
@@ -86,7 +86,7 @@ fn a_coarsening_stack_shares_its_interfaces_and_solves() {
     let stats = sim.step();
     let body = 5 * 3;
     assert_eq!(stats.patches[0].vertices, body + 4 + 6 + 15 + 45 + 45);
-    assert!(stats.patches[0].converged, "{:?}", stats.patches[0]);
+    assert!(stats.patches[0].outcome.converged, "{:?}", stats.patches[0]);
     let total: f64 = sim.world.query::<&Mass>().iter(&sim.world).map(|m| m.0).sum();
     let expected = (1000.0 * 1.0e-3 + 1200.0 * 1.0e-3 + 1500.0 * 0.02e-3) * 4e-3 * 2e-3;
     assert!((total / expected - 1.0).abs() < 1e-12, "{total} vs {expected}");
@@ -125,7 +125,7 @@ fn periodic_and_plane_strain_ties_hold_after_solving() {
     assert_eq!(seam, 1);
     for _ in 0..4 {
         let s = sim.step();
-        assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+        assert!(s.patches[0].outcome.converged, "{:?}", s.patches[0]);
     }
     let mut q = sim.world.query::<(&PackedPatch, &PackedIndex)>();
     let (body, index) = q.single(&sim.world).unwrap();
@@ -170,10 +170,10 @@ fn nearly_incompressible_layers_share_one_dilatation_per_cell() {
         let scene = load_str(text, &scene_path("cells.ron")).unwrap();
         let mut sim = Simulation::new(&scene);
         let s = sim.step();
-        assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+        assert!(s.patches[0].outcome.converged, "{:?}", s.patches[0]);
         let mut q = sim.world.query::<&PackedPatch>();
         let el = q.single(&sim.world).unwrap().elements.clone();
-        (el, s.patches[0].energy)
+        (el, s.patches[0].outcome.energy)
     };
     let stiff = STACK
         .replace("poisson: 0.45, density: 1000.0", "poisson: 0.495, density: 1000.0")

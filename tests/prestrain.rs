@@ -36,7 +36,7 @@ fn uniform_prestrain_sets_the_stress_free_size() {
     let scene = load_str(BLOCK, &scene_path("block.ron")).unwrap();
     let mut sim = Simulation::new(&scene);
     let stats = sim.step();
-    assert!(stats.patches[0].converged, "{:?}", stats.patches[0]);
+    assert!(stats.patches[0].outcome.converged, "{:?}", stats.patches[0]);
     let size = extent(&sim.layer_positions("p", "slab"));
     // F = dx/dX F0 = I at rest: the block shrinks by 1/1.02 and 1/1.04 in plane, keeps its depth.
     let expected = DVec3::new(4e-3 / 1.02, 2e-3 / 1.04, 1e-3);
@@ -63,7 +63,7 @@ fn a_painted_map_scales_the_prestrain_per_element() {
     let mut sim = Simulation::new(&scene);
     let f0: Vec<f64> = sim.world.query::<&TetPrestrain>().iter(&sim.world).map(|p| p.0.x_axis.x).collect();
     assert!(f0.iter().any(|&s| (s - 1.02).abs() < 1e-12) && f0.iter().any(|&s| (s - 1.0).abs() < 1e-12));
-    assert!(sim.step().patches[0].converged);
+    assert!(sim.step().patches[0].outcome.converged);
 }
 
 #[test]
@@ -119,7 +119,7 @@ fn captured_wrinkles_stay_after_the_load_is_released() {
         let mut amplitude = Vec::new();
         for _ in 0..12 {
             let s = sim.step();
-            assert!(s.patches[0].converged, "{:?}", s.patches[0]);
+            assert!(s.patches[0].outcome.converged, "{:?}", s.patches[0]);
             amplitude.push(film_amplitude(&mut sim));
         }
         amplitude

@@ -90,8 +90,8 @@ fn a_remeshed_layer_coarsens_where_flat_refines_where_it_wrinkles_and_converges(
     for frame in 1..=scene.scene.frames {
         let s = sim.step();
         let p = &s.patches[0];
-        assert!(p.converged, "frame {frame}: {p:?}");
-        assert!(p.constraint_violation < 1e-9, "frame {frame}: {}", p.constraint_violation);
+        assert!(p.outcome.converged, "frame {frame}: {p:?}");
+        assert!(p.outcome.constraint_violation < 1e-9, "frame {frame}: {}", p.outcome.constraint_violation);
         check_layer(&mut sim, dermis, 24e-3 * 12e-3);
         assert!(check_weights(&mut sim) > 0, "kernels resampled and centred on the new mesh");
         let report = *sim.world.get::<RemeshReport>(dermis).unwrap();
@@ -140,8 +140,8 @@ fn jump_at_remesh(edits: &[(&str, &str)], at: usize) -> (f64, f64) {
     scene.scene.frames = at as u32;
     let (_, stats) = run(&scene);
     let (before, after) = (&stats[at - 2].patches[0], &stats[at - 1].patches[0]);
-    assert!(before.converged && after.converged);
-    ((after.start_energy - before.energy) / before.energy, after.start_violation)
+    assert!(before.outcome.converged && after.outcome.converged);
+    ((after.outcome.start_energy - before.outcome.energy) / before.outcome.energy, after.outcome.start_violation)
 }
 
 /// Issue 5 points 3 and 4, measured at a remesh of a held patch (the numbers are printed):
@@ -210,7 +210,7 @@ fn refining_a_coarse_wrinkled_strip_does_not_fold_it() {
     let scene = skinsim::scene::load_str(&text, &scratch_dir("remesh").join("strip.ron")).unwrap();
     let (mut sim, stats) = run(&scene);
     let p: Vec<_> = stats.iter().map(|s| &s.patches[0]).collect();
-    assert!(p.iter().all(|p| p.converged), "{p:?}");
+    assert!(p.iter().all(|p| p.outcome.converged), "{p:?}");
     let (uv, x, faces) = sim.layer_mesh("skin", "skin");
     assert!(uv.len() > 4 * 655, "refined about fourfold from 655 vertices: {}", uv.len());
     let normal = |f: &[u32; 3]| {
@@ -223,7 +223,7 @@ fn refining_a_coarse_wrinkled_strip_does_not_fold_it() {
         .map(|e| normal(&faces[e.faces[0] as usize]).angle_between(normal(&faces[e.faces[1] as usize])))
         .fold(0.0f64, f64::max);
     // The remesh before frame 5 refines the wrinkled strip.
-    let pop = p[4].start_energy / p[3].energy;
+    let pop = p[4].outcome.start_energy / p[3].outcome.energy;
     println!("coarse to fine: energy at the remesh x{pop:.2}, largest dihedral angle {dihedral:.3} rad");
     assert!(pop < 1.5, "no pop: x{pop}");
     assert!(dihedral < 0.6, "no fold: {dihedral} rad");
@@ -254,8 +254,8 @@ fn run_checked(scene: &skinsim::scene::BuiltScene) -> Simulation {
 fn step_checked(sim: &mut Simulation, frame: u32, dermis: Entity) -> PatchReport {
     let s = sim.step();
     let p = s.patches[0].clone();
-    assert!(p.converged && p.energy.is_finite(), "frame {frame}: {p:?}");
-    assert!(p.constraint_violation < 1e-9, "frame {frame}: {}", p.constraint_violation);
+    assert!(p.outcome.converged && p.outcome.energy.is_finite(), "frame {frame}: {p:?}");
+    assert!(p.outcome.constraint_violation < 1e-9, "frame {frame}: {}", p.outcome.constraint_violation);
     check_layer(sim, dermis, 24e-3 * 12e-3);
     p
 }
@@ -355,7 +355,7 @@ fn a_remeshed_layer_keeps_its_prestrain() {
     let bending = *sim.world.get::<Bending>(dermis).unwrap();
     for frame in 1..=3 {
         let s = sim.step();
-        assert!(s.patches[0].converged, "frame {frame}: {:?}", s.patches[0]);
+        assert!(s.patches[0].outcome.converged, "frame {frame}: {:?}", s.patches[0]);
         let w = &sim.world;
         let rest = |v: Entity| w.get::<RestPos>(v).unwrap().0;
         let uv = |v: Entity| w.get::<MaterialPos>(v).unwrap().0;
@@ -481,7 +481,7 @@ fn attachments_follow_a_remesh_of_either_layer() {
         let mut worst_gap = 0.0f64;
         for frame in 1..=scene.scene.frames {
             let s = sim.step();
-            assert!(s.patches[0].converged, "{attached} -> {to}, frame {frame}: {:?}", s.patches[0]);
+            assert!(s.patches[0].outcome.converged, "{attached} -> {to}, frame {frame}: {:?}", s.patches[0]);
             let w = &sim.world;
             let springs = w.get::<LayerSprings>(a_layer).unwrap().entities().to_vec();
             let a_verts: HashSet<Entity> =
@@ -540,7 +540,7 @@ fn the_wavelength_term_refines_before_the_first_solve() {
         let mut scene = skinsim::scene::load_str(&text, &path).unwrap_or_else(|e| panic!("{e}"));
         scene.scene.frames = 1;
         let (mut sim, stats) = run(&scene);
-        assert!(stats[0].patches[0].converged, "{:?}", stats[0].patches[0]);
+        assert!(stats[0].patches[0].outcome.converged, "{:?}", stats[0].patches[0]);
         let skin = layer(&mut sim, "skin");
         let report = *sim.world.get::<RemeshReport>(skin).unwrap();
         let w = &sim.world;
@@ -562,7 +562,7 @@ fn the_wavelength_term_refines_before_the_first_solve() {
     // The layer was at rest: its new vertices start at their rest positions (no strain, so no
     // energy but round-off), and nothing is settled. (With the curved midpoints and the settle,
     // 1.9e-12 J here.)
-    let start = first.patches[0].start_energy;
+    let start = first.patches[0].outcome.start_energy;
     assert!(start.abs() < 1e-15, "the refined strip starts strained: {start:e} J");
     assert_eq!(first.timing(Stage::Settle), 0.0, "a layer at rest was settled");
     let (report, widest, _) = refine("");
@@ -686,7 +686,7 @@ fn a_region_solve_after_each_remesh_converges_and_is_reported() {
             .world
             .get::<RemeshReport>(dermis)
             .is_some_and(|r| r.frame == u64::from(frame) && r.stats.splits + r.stats.collapses + r.stats.flips > 0);
-        println!("frame {frame}: {} Newton iterations, region solve {:?}", p.newton_iterations, p.local_solve);
+        println!("frame {frame}: {} Newton iterations, region solve {:?}", p.outcome.iterations, p.local_solve);
         assert_eq!(p.local_solve.is_some(), changed, "frame {frame}");
         if let Some(r) = p.local_solve {
             assert!(r.converged && r.vertices > 0 && r.iterations > 0, "frame {frame}: {r:?}");
@@ -837,19 +837,19 @@ fn a_held_remesh_takes_back_a_step_its_model_did_not_predict() {
     };
     let mut level = 0.0;
     for _ in 0..10 {
-        level = sim.step().patches[0].residual;
+        level = sim.step().patches[0].outcome.residual;
     }
     assert!(level > 1e-8, "the load ends at the round-off floor, above the tolerance: {level:e}");
     every(&mut sim, u32::MAX);
-    assert_eq!(sim.step().patches[0].newton_iterations, 0, "the held load's first frame starts converged");
+    assert_eq!(sim.step().patches[0].outcome.iterations, 0, "the held load's first frame starts converged");
     every(&mut sim, 1);
     let (mut iterations, mut taken_back, mut in_band) = (Vec::new(), 0, 0);
     for _ in 0..3 {
         let p = sim.step().patches[0].clone();
-        assert!(p.converged && sim.failure().is_none());
-        iterations.push(p.newton_iterations);
-        taken_back += p.unmodelled_steps;
-        in_band += u32::from(p.residual > level && p.residual <= 2.0 * level);
+        assert!(p.outcome.converged && sim.failure().is_none());
+        iterations.push(p.outcome.iterations);
+        taken_back += p.outcome.unmodelled_steps;
+        in_band += u32::from(p.outcome.residual > level && p.outcome.residual <= 2.0 * level);
     }
     println!("held remeshes: {iterations:?} Newton iterations, {taken_back} step(s) taken back, {in_band} in the band");
     assert!(taken_back >= 1, "no step was taken back: {iterations:?}");

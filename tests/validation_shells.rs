@@ -247,7 +247,7 @@ fn case6_euler_buckling_pinned_critical_load_and_post_buckling() {
     let mut checked = 0;
     for frame in 1..=scene.scene.frames {
         let stats = sim.step();
-        assert!(stats.patches[0].converged, "frame {frame} did not converge: {:?}", stats.patches[0]);
+        assert!(stats.patches[0].outcome.converged, "frame {frame} did not converge: {:?}", stats.patches[0]);
         let Some(&(_, shortening)) = keys.iter().find(|k| k.0 == frame) else { continue };
         let (p, w, l) = strip_measures(&mut sim);
         let p_cr = std::f64::consts::PI.powi(2) * d / (l * l);
@@ -273,7 +273,7 @@ fn case6_euler_buckling_clamped_critical_load() {
     let scene = load("validation/euler_clamped.ron");
     let d = plate_d(&scene);
     let (mut sim, stats) = run(&scene);
-    assert!(stats.iter().all(|s| s.patches[0].converged));
+    assert!(stats.iter().all(|s| s.patches[0].outcome.converged));
     let (p, _, l) = strip_measures(&mut sim);
     // The held end cells are flat; the first free hinge lumps the curvature of half a cell on
     // each side, so the clamp acts at the centre of the held cell: span = L - one cell (0.5 mm).
@@ -295,8 +295,8 @@ fn a_perfect_strip_still_buckles() {
     let d = plate_d(&scene);
     let mut sim = skinsim_systems::Simulation::new(&scene);
     let stats = sim.step();
-    assert!(stats.patches[0].converged, "{:?}", stats.patches[0]);
-    assert!(stats.patches[0].escapes >= 1, "the straight state was accepted");
+    assert!(stats.patches[0].outcome.converged, "{:?}", stats.patches[0]);
+    assert!(stats.patches[0].outcome.escapes >= 1, "the straight state was accepted");
     let (p, w, l) = strip_measures(&mut sim);
     let p_cr = std::f64::consts::PI.powi(2) * d / (l * l);
     let (p_theory, w_theory, _) = elastica(1e-3);
@@ -334,7 +334,7 @@ fn fine_increments(name: &str, clamped: bool) {
     let mut deflection = 0.0;
     for frame in 1..=frames {
         let stats = sim.step();
-        assert!(stats.patches[0].converged, "{name} frame {frame} did not converge: {:?}", stats.patches[0]);
+        assert!(stats.patches[0].outcome.converged, "{name} frame {frame} did not converge: {:?}", stats.patches[0]);
         let (p, w, _) = strip_measures(&mut sim);
         println!(
             "{name} frame {frame}: eps/eps_cr {:.2}, P/Pcr {:.4}, w/L {:.2e}",
@@ -376,7 +376,7 @@ fn straight_strip_hessian(ratio: f64) -> (skinsim::solve::pattern::Pattern, Vec<
         }
     }
     let mut sim = skinsim_systems::Simulation::new(&scene);
-    assert!(sim.step().patches[0].converged);
+    assert!(sim.step().patches[0].outcome.converged);
     let mut q = sim.world.query::<&PackedPatch>();
     let packed = q.single(&sim.world).unwrap();
     let s = &packed.state;

@@ -3,6 +3,8 @@
 use bevy_ecs::prelude::*;
 use serde::Serialize;
 
+use crate::solve::{FrameOutcome, SolveError};
+
 /// Simulation clock: the frame being computed and its time.
 #[derive(Resource, Clone, Copy, Debug, Default)]
 pub struct SimClock {
@@ -89,46 +91,16 @@ impl Timings {
     }
 }
 
-/// One patch's result for the frame.
+/// One patch's result for the frame: its size and what the solve did (`FrameOutcome`, whose
+/// fields are the report's columns).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct PatchReport {
     pub name: String,
     pub vertices: usize,
     pub faces: usize,
     pub tets: usize,
-    pub newton_iterations: u32,
-    pub converged: bool,
-    /// Final gradient norm over free DOFs divided by the internal force scale.
-    pub residual: f64,
-    /// Total energy (J): elastic + springs (+ inertia term in dynamic mode).
-    pub energy: f64,
-    /// Energy by element kind (J).
-    pub energy_membrane: f64,
-    pub energy_bending: f64,
-    pub energy_volume: f64,
-    pub energy_springs: f64,
-    /// Factorizations that needed a diagonal shift.
-    pub regularized: u32,
-    pub line_search_failures: u32,
-    /// Unstable equilibria left along negative curvature (quasistatic stability check).
-    pub escapes: u32,
-    /// Full steps under a held load taken back because the energy rose far past their quadratic
-    /// model (counted in `newton_iterations`).
-    pub unmodelled_steps: u32,
-    /// Numeric Cholesky factorizations and conjugate-gradient iterations in the frame.
-    pub factorizations: u32,
-    pub cg_iterations: u32,
-    /// LK14 kernels: constraint rows and the largest violation relative to the patch size.
-    pub constraints: usize,
-    pub constraint_violation: f64,
-    /// Energy (J) and constraint violation at the frame's first iterate, after the drivers and
-    /// any remesh: a remesh pop is the jump from the previous frame's `energy`.
-    pub start_energy: f64,
-    pub start_violation: f64,
-    /// Tetrahedra with non-positive volume at the end of the frame (models that allow inversion).
-    pub inverted: usize,
-    /// Time inside the solve: element assembly, factorization, line search (ms).
-    pub solve_breakdown_ms: crate::solve::SolveCounters,
+    #[serde(flatten)]
+    pub outcome: FrameOutcome,
     /// KCK18 anchors: what this frame's walk (or projection) did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub anchors: Option<super::AnchorReport>,
@@ -143,61 +115,19 @@ pub struct PatchSize {
     pub vertices: usize,
     pub faces: usize,
     pub tets: usize,
-    pub inverted: usize,
-    pub constraints: usize,
 }
 
 impl PatchReport {
     /// The report of a frame the solver finished (converged or not).
-    pub fn solved(
-        name: String,
-        size: PatchSize,
-        o: &crate::solve::FrameOutcome,
-        anchors: Option<super::AnchorReport>,
-    ) -> Self {
-        PatchReport {
-            name,
-            vertices: size.vertices,
-            faces: size.faces,
-            tets: size.tets,
-            newton_iterations: o.iterations,
-            converged: o.converged,
-            residual: o.residual,
-            energy: o.energy,
-            energy_membrane: o.parts.membrane,
-            energy_bending: o.parts.bending,
-            energy_volume: o.parts.volume,
-            energy_springs: o.parts.springs,
-            regularized: o.regularized,
-            line_search_failures: o.line_search_failures,
-            escapes: o.escapes,
-            unmodelled_steps: o.unmodelled_steps,
-            factorizations: o.factorizations,
-            cg_iterations: o.cg_iterations,
-            constraints: size.constraints,
-            constraint_violation: o.constraint_violation,
-            start_energy: o.start_energy,
-            start_violation: o.start_violation,
-            inverted: size.inverted,
-            solve_breakdown_ms: o.counters,
-            anchors,
-            local_solve: None,
-        }
+    pub fn solved(name: String, size: PatchSize, outcome: FrameOutcome, anchors: Option<super::AnchorReport>) -> Self {
+        let PatchSize { vertices, faces, tets } = size;
+        PatchReport { name, vertices, faces, tets, outcome, anchors, local_solve: None }
     }
 
     /// The report of a frame whose solve failed (non-finite, no descent): no energy, no residual.
     pub fn failed(name: String, size: PatchSize, anchors: Option<super::AnchorReport>) -> Self {
-        PatchReport {
-            name,
-            vertices: size.vertices,
-            faces: size.faces,
-            tets: size.tets,
-            converged: false,
-            residual: f64::NAN,
-            energy: f64::NAN,
-            anchors,
-            ..Default::default()
-        }
+        let outcome = FrameOutcome { converged: false, residual: f64::NAN, energy: f64::NAN, ..Default::default() };
+        PatchReport::solved(name, size, outcome, anchors)
     }
 }
 
@@ -207,6 +137,17 @@ pub struct FrameReport {
     pub patches: Vec<PatchReport>,
 }
 
+/// Why a run stopped.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum Failure {
+    /// A patch's solve failed in a frame.
+    #[error("frame {frame}: patch \"{patch}\": {error}")]
+    Solve { frame: u32, patch: String, error: SolveError },
+    /// An output of the frame could not be written: the file and the system's reason.
+    #[error("cannot write {file}: {reason}")]
+    Output { file: String, reason: String },
+}
+
 /// A simulation failure (NaN, breakdown): the run stops after the frame that set it.
 #[derive(Resource, Clone, Debug, Default)]
-pub struct SimFailure(pub Option<String>);
+pub struct SimFailure(pub Option<Failure>);

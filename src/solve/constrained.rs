@@ -18,7 +18,9 @@ use glam::DVec3;
 use super::constraints::Constraints;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
-use super::iteration::{correction, line_search, step, FrameOutcome, FrameStart, ARMIJO, MAX_ESCAPES, ROUND_OFF};
+use super::iteration::{
+    correction, evaluate, line_search, step, FrameOutcome, FrameStart, ARMIJO, MAX_ESCAPES, ROUND_OFF,
+};
 use super::kkt::KktSystem;
 use super::linear::symmetric_product_into;
 use super::packed::PackedPatch;
@@ -52,19 +54,7 @@ pub(super) fn newton_kkt(
 
     let energy_scale = packed.elements.energy_scale(packed.length_scale);
     let (mut grad, mut values, mut dx) = (vec![0.0; n], vec![0.0; pattern.nnz()], vec![0.0; n]);
-    // The last solve's multipliers: a frame that starts at its equilibrium (a held load) is
-    // converged as it stands, instead of spending a Newton iteration (a factorization) to find
-    // them again. Only that test reads them: every other frame runs as from zero multipliers
-    // (its first residual, the stall test's reference, unchanged).
-    let warm = std::mem::take(&mut packed.cache.multipliers);
-    // A frame that starts with the kernels met and a residual no larger than the one the last
-    // frame was accepted at is accepted as it stands, on a remeshed layer too: when that frame
-    // ended at the round-off floor (within 1000x the tolerance, no progress over STALL
-    // iterations), iterating on from there only crawls along a soft mode, 5-8 iterations a frame
-    // with the load held (the fig. 6-4 pinch, `src/mesh/remesh/README.md`).
-    let last_accepted = std::mem::take(&mut packed.cache.accepted);
-    let held = packed.load_held && inertia.is_none();
-    let reach = held_level(held, last_accepted, settings.tolerance);
+    let Carried { warm, last_accepted, held, reach } = Carried::take(packed, inertia.is_none(), settings.tolerance);
     kkt.held = held;
     let (mut lambda, mut next_lambda, mut jac) = (vec![0.0; m], vec![0.0; m], Vec::new());
     let mut rho = 0.0f64;
@@ -78,26 +68,13 @@ pub(super) fn newton_kkt(
     let mut stable_step = false;
     let result = loop {
         let filter = progress.filter();
+        let Assembly { parts, force_scale } =
+            evaluate(packed, pattern, filter, inertia.as_ref(), &mut grad, &mut values, &mut out);
         let clock = std::time::Instant::now();
-        let Assembly { parts, mut force_scale } =
-            assemble(&packed.elements, pattern, &packed.state.x, filter, &mut grad, &mut values);
-        if let Some(inr) = &inertia {
-            force_scale += inr.add_to(pattern, &packed.state.x, &mut grad, &mut values);
-        }
         let c: Vec<f64> = constraints.values(&packed.state.x).iter().flat_map(|v| v.to_array()).collect();
         constraints.jacobian(&packed.state.x, &mut jac);
         out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
-        // Lagrangian gradient g + J^T lambda.
-        let gradient_norm = |lambda: &[f64]| {
-            let mut lagrangian = grad.clone();
-            for (e, &(r, v, coord)) in constraints.entries.iter().enumerate() {
-                let d = pattern.dof[3 * v as usize + coord as usize];
-                if d != NONE {
-                    lagrangian[d as usize] += jac[e] * lambda[r as usize];
-                }
-            }
-            lagrangian.iter().map(|g| g * g).sum::<f64>().sqrt()
-        };
+        let gradient_norm = |lambda: &[f64]| lagrangian_norm(pattern, &constraints, &jac, &grad, lambda);
         let phi = objective(&parts, &packed.state.x);
         let gnorm = gradient_norm(&lambda);
         if !phi.is_finite() || !gnorm.is_finite() {
@@ -133,11 +110,7 @@ pub(super) fn newton_kkt(
                 if filter != Filter::Exact {
                     assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut grad, &mut values);
                 }
-                let clock = std::time::Instant::now();
-                let merit = |x: &[DVec3]| energy(&packed.elements, x).total() + rho * constraints.violation_l1(x);
-                let left = leave_saddle(packed, pattern, kkt, &values, &jac, &merit);
-                out.counters.stability_ms += clock.elapsed().as_secs_f64() * 1e3;
-                if let Some(x) = left {
+                if let Some(x) = leave_saddle(packed, pattern, kkt, &constraints, &values, &jac, rho, &mut out) {
                     packed.state.x = x;
                     out.escapes += 1;
                     out.converged = false;
@@ -152,16 +125,8 @@ pub(super) fn newton_kkt(
             break Ok(());
         }
         if settings.globalization == Globalization::TrustRegion && settings.mode != SolveMode::LinearizedEuler {
-            let it = Iterate {
-                h: &values,
-                jac: &jac,
-                grad: &grad,
-                c: &c,
-                constraints: &constraints,
-                phi,
-                residual,
-                energy_scale,
-            };
+            let (h, constraints) = (&values, &constraints);
+            let it = Iterate { h, jac: &jac, grad: &grad, c: &c, constraints, phi, residual, energy_scale };
             stable_step = false; // (its factorizations are not read here)
             match region.step(packed, pattern, kkt, &it, &objective, &mut next_lambda, &mut rho, &mut out) {
                 Ok(true) => {
@@ -187,9 +152,6 @@ pub(super) fn newton_kkt(
         stable_step = solved.is_ok() && filter == Filter::Exact && kkt.stable_at_round_off();
         tracing::trace!(solved = solved.is_ok(), shift = kkt.shift, "KKT step");
         let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        if solved.is_ok() {
-            rho = rho.max(2.0 * next_lambda.iter().fold(0.0f64, |a, l| a.max(l.abs())));
-        }
         if settings.mode == SolveMode::LinearizedEuler && solved.is_ok() {
             // LK14 eq. 5.2 with the kernels linearized too: the full SQP step.
             let x0 = packed.state.x.clone();
@@ -198,11 +160,8 @@ pub(super) fn newton_kkt(
             break Ok(());
         }
         let c_l1: f64 = c.iter().map(|v| v.abs()).sum();
-        // The step is a descent direction of the constrained problem, but where H is negative
-        // off the null space of J the objective may rise along it: then the penalty must
-        // outweigh that rise for the merit function to fall (with margin 2).
-        if solved.is_ok() && c_l1 > 0.0 && slope - rho * c_l1 >= 0.0 {
-            rho = 2.0 * slope / c_l1;
+        if solved.is_ok() {
+            rho = penalty(rho, &next_lambda, slope, c_l1);
         }
         let merit_slope = slope - rho * c_l1;
         if solved.is_err() || merit_slope.is_nan() || merit_slope >= 0.0 {
@@ -225,11 +184,10 @@ pub(super) fn newton_kkt(
             // (the pinch's held remesh: 12 iterations). Taken back, and tried stiffer.
             if let Some(x0) = x0 {
                 let change = objective(&energy(&packed.elements, &packed.state.x), &packed.state.x) - phi;
-                let mut hdx = vec![0.0; n];
-                symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, &values, &dx, &mut hdx);
-                let model = slope + 0.5 * dx.iter().zip(&hdx).map(|(a, b)| a * b).sum::<f64>();
-                if !as_modelled(change, model, ROUND_OFF * energy_scale) && kkt.stiffen() {
-                    tracing::trace!(change, model, "held step taken back");
+                if !as_modelled(change, quadratic_model(pattern, &values, &dx, slope), ROUND_OFF * energy_scale)
+                    && kkt.stiffen()
+                {
+                    tracing::trace!(change, "held step taken back");
                     packed.state.x.copy_from_slice(&x0);
                     out.unmodelled_steps += 1;
                     continue;
@@ -262,21 +220,86 @@ pub(super) fn newton_kkt(
     if result.is_ok() {
         start.finish(packed);
         packed.cache.multipliers = lambda;
-        // Under a held load the level stays the load's: a held frame converged below it (a
-        // remeshed frame solved past it, or one that starts converged) does not tighten what
-        // the next held remesh must reach (the pinch's third held remesh had to reach the
-        // second's residual, 5.3e-6, not the load's 7.2e-6).
-        let level = out.residual.min(1e3 * settings.tolerance);
-        packed.cache.accepted = match (out.converged, held) {
-            (false, _) => 0.0,
-            // (within the band it stays the load's: a level that rose with every held frame
-            // would loosen each remesh after it by PROGRESS again)
-            (true, true) if out.residual <= reach => last_accepted,
-            (true, true) => level.max(last_accepted),
-            (true, false) => level,
-        };
+        packed.cache.accepted = accepted_level(&out, held, reach, last_accepted, settings.tolerance);
     }
     result.map(|_| out)
+}
+
+/// What a frame carries over from the last solve of its patch.
+struct Carried {
+    /// The last solve's multipliers: a frame that starts at its equilibrium (a held load) is
+    /// converged as it stands, instead of spending a Newton iteration (a factorization) to find
+    /// them again. Only that test reads them: every other frame runs as from zero multipliers
+    /// (its first residual, the stall test's reference, unchanged).
+    warm: Vec<f64>,
+    /// A frame that starts with the kernels met and a residual no larger than the one the last
+    /// frame was accepted at is accepted as it stands, on a remeshed layer too: when that frame
+    /// ended at the round-off floor (within 1000x the tolerance, no progress over STALL
+    /// iterations), iterating on from there only crawls along a soft mode, 5-8 iterations a
+    /// frame with the load held (the fig. 6-4 pinch, `src/mesh/remesh/README.md`).
+    last_accepted: f64,
+    /// Quasistatic under the load the last solve was accepted at (`PackedPatch::load_held`).
+    held: bool,
+    /// The residual accepted besides the tolerance (`held_level`).
+    reach: f64,
+}
+
+impl Carried {
+    fn take(packed: &mut PackedPatch, quasistatic: bool, tolerance: f64) -> Carried {
+        let warm = std::mem::take(&mut packed.cache.multipliers);
+        let last_accepted = std::mem::take(&mut packed.cache.accepted);
+        let held = packed.load_held && quasistatic;
+        Carried { warm, last_accepted, held, reach: held_level(held, last_accepted, tolerance) }
+    }
+}
+
+/// The l1 merit's penalty after a KKT step: at least twice the largest multiplier. The step is
+/// a descent direction of the constrained problem, but where H is negative off the null space
+/// of J the objective may rise along it (`slope` >= 0): then the penalty must outweigh that
+/// rise for the merit function to fall (with margin 2).
+fn penalty(rho: f64, lambda: &[f64], slope: f64, c_l1: f64) -> f64 {
+    let rho = rho.max(2.0 * lambda.iter().fold(0.0f64, |a, l| a.max(l.abs())));
+    if c_l1 > 0.0 && slope - rho * c_l1 >= 0.0 {
+        2.0 * slope / c_l1
+    } else {
+        rho
+    }
+}
+
+/// The norm of the Lagrangian gradient g + J^T lambda over the free DOFs.
+fn lagrangian_norm(pattern: &Pattern, constraints: &Constraints, jac: &[f64], grad: &[f64], lambda: &[f64]) -> f64 {
+    let mut lagrangian = grad.to_vec();
+    for (e, &(r, v, coord)) in constraints.entries.iter().enumerate() {
+        let d = pattern.dof[3 * v as usize + coord as usize];
+        if d != NONE {
+            lagrangian[d as usize] += jac[e] * lambda[r as usize];
+        }
+    }
+    lagrangian.iter().map(|g| g * g).sum::<f64>().sqrt()
+}
+
+/// The change g.dx + dx.H.dx / 2 the quadratic model predicts for the step dx (`slope` = g.dx).
+fn quadratic_model(pattern: &Pattern, values: &[f64], dx: &[f64], slope: f64) -> f64 {
+    let mut hdx = vec![0.0; dx.len()];
+    symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, values, dx, &mut hdx);
+    slope + 0.5 * dx.iter().zip(&hdx).map(|(a, b)| a * b).sum::<f64>()
+}
+
+/// The residual the next frame's solve is accepted at (`SolverCache::accepted`). Under a held
+/// load the level stays the load's: a held frame converged below it (a remeshed frame solved
+/// past it, or one that starts converged) does not tighten what the next held remesh must
+/// reach (the pinch's third held remesh had to reach the second's residual, 5.3e-6, not the
+/// load's 7.2e-6).
+fn accepted_level(out: &FrameOutcome, held: bool, reach: f64, last_accepted: f64, tolerance: f64) -> f64 {
+    let level = out.residual.min(1e3 * tolerance);
+    match (out.converged, held) {
+        (false, _) => 0.0,
+        // (within the band it stays the load's: a level that rose with every held frame
+        // would loosen each remesh after it by PROGRESS again)
+        (true, true) if out.residual <= reach => last_accepted,
+        (true, true) => level.max(last_accepted),
+        (true, false) => level,
+    }
 }
 
 /// The residual a frame is accepted at besides the tolerance: the one the last solve was accepted
@@ -298,24 +321,32 @@ fn as_modelled(change: f64, model: f64, noise: f64) -> bool {
     change - model <= HELD_MODEL_ERROR * model.abs().max(noise)
 }
 
-/// At a converged constrained equilibrium: a lower-merit state along the most negative
-/// curvature of H on the null space of J when there is one (a constrained saddle: the
-/// compressed flat sheet past its buckling load is one), None at a stable equilibrium.
+/// At a converged constrained equilibrium: a lower-merit state (energy + rho |c|_1) along the
+/// most negative curvature of H on the null space of J when there is one (a constrained
+/// saddle: the compressed flat sheet past its buckling load is one), None at a stable
+/// equilibrium. Timed as the stability test.
+#[allow(clippy::too_many_arguments)]
 fn leave_saddle(
     packed: &PackedPatch,
     pattern: &Pattern,
     kkt: &mut KktSystem,
+    constraints: &Constraints,
     h: &[f64],
     jac: &[f64],
-    merit: &dyn Fn(&[DVec3]) -> f64,
+    rho: f64,
+    out: &mut FrameOutcome,
 ) -> Option<Vec<DVec3>> {
-    match stability::test_constrained(pattern, kkt, h, jac)? {
-        Verdict::Stable => None,
-        Verdict::Unstable { direction, .. } => {
+    let clock = std::time::Instant::now();
+    let merit = |x: &[DVec3]| energy(&packed.elements, x).total() + rho * constraints.violation_l1(x);
+    let left = match stability::test_constrained(pattern, kkt, h, jac) {
+        None | Some(Verdict::Stable) => None,
+        Some(Verdict::Unstable { direction, .. }) => {
             let phi = merit(&packed.state.x);
-            stability::escape(&packed.state.x, &pattern.dof, &direction, phi, packed.length_scale, merit)
+            stability::escape(&packed.state.x, &pattern.dof, &direction, phi, packed.length_scale, &merit)
         }
-    }
+    };
+    out.counters.stability_ms += clock.elapsed().as_secs_f64() * 1e3;
+    left
 }
 
 /// Second-order correction (the Maratos effect: near the solution a full SQP step can raise the

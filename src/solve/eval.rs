@@ -10,14 +10,18 @@ use super::pattern::Pattern;
 use super::scatter::Scatter;
 use crate::physics::psd::Filter;
 
-/// Energy by element kind (J).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// Energy by element kind (J), serialized as the report's `energy_*` columns.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct EnergyParts {
+    #[serde(rename = "energy_membrane")]
     pub membrane: f64,
     /// Hinges, or the quadratic element and its Gaussian term.
+    #[serde(rename = "energy_bending")]
     pub bending: f64,
+    #[serde(rename = "energy_volume")]
     pub volume: f64,
     /// Attachment springs, KCK18 anchors and pins.
+    #[serde(rename = "energy_springs")]
     pub springs: f64,
 }
 

@@ -14,6 +14,12 @@ use super::settings::SolverSettings;
 /// Solves one frame in place on `packed.state.x` (prescribed coordinates already at their targets).
 /// Returns Err with a reason when the state becomes non-finite.
 pub fn solve_frame(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result<FrameOutcome, SolveError> {
+    let mut out = solve(packed, settings, dt)?;
+    (out.constraints, out.inverted) = (packed.constraints.rows(), packed.inverted_tets());
+    Ok(out)
+}
+
+fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result<FrameOutcome, SolveError> {
     let (pattern, mut chol) = match packed.cache.system.take() {
         Some(system) => system,
         None => {

@@ -5,13 +5,14 @@
 use glam::DVec3;
 
 use super::constraints::Constraints;
-use super::eval::{energy, EnergyParts};
+use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::kkt::KktSystem;
 use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::progress::ADAPTIVE_SWITCH;
 use super::settings::SolverSettings;
+use crate::physics::psd::Filter;
 
 /// Armijo sufficient-decrease constant.
 pub(super) const ARMIJO: f64 = 1e-4;
@@ -20,14 +21,20 @@ const MAX_HALVINGS: u32 = 40;
 pub(super) const ROUND_OFF: f64 = 1e-13;
 /// Saddles left per frame at most.
 pub(super) const MAX_ESCAPES: u32 = 4;
-/// What happened in one frame's solve.
-#[derive(Clone, Debug, Default)]
+/// What happened in one frame's solve: the columns of a patch's report in `stats.jsonl`
+/// (serialized under those names).
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct FrameOutcome {
+    #[serde(rename = "newton_iterations")]
     pub iterations: u32,
     pub converged: bool,
+    /// Final gradient norm over free DOFs divided by the internal force scale.
     pub residual: f64,
+    /// Total energy (J): elastic + springs (+ inertia term in dynamic mode).
     pub energy: f64,
+    #[serde(flatten)]
     pub parts: EnergyParts,
+    /// Factorizations that needed a diagonal shift.
     pub regularized: u32,
     pub line_search_failures: u32,
     /// Times the solve left an unstable equilibrium along negative curvature.
@@ -38,17 +45,23 @@ pub struct FrameOutcome {
     /// Numeric Cholesky factorizations, and conjugate-gradient iterations (Krylov mode).
     pub factorizations: u32,
     pub cg_iterations: u32,
+    /// LK14 kernels: constraint rows.
+    pub constraints: usize,
     /// Largest kernel-constraint violation, relative to the patch size (0 without kernels).
     pub constraint_violation: f64,
     /// Energy and constraint violation at the frame's first iterate: after the drivers and any
     /// remesh, before the solve (a remesh "pop" shows as a jump from the previous frame's end).
     pub start_energy: f64,
     pub start_violation: f64,
+    /// Tetrahedra with non-positive volume at the end of the frame (models that allow inversion).
+    pub inverted: usize,
     /// The merit after each accepted trust-region step (empty with the line search).
+    #[serde(skip)]
     pub merits: Vec<f64>,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
     /// factorization and triangular solves (with their f32 refinement), line-search energy
     /// evaluations, the stability test.
+    #[serde(rename = "solve_breakdown_ms")]
     pub counters: SolveCounters,
 }
 
@@ -156,6 +169,27 @@ impl Inertia<'_> {
             .map(|((a, b), m)| 0.5 * m * self.inv_h2 * (*a - *b).length_squared())
             .sum()
     }
+}
+
+/// Assembles the elastic energy, gradient and Hessian at the state (timed) and adds the
+/// inertia term's (implicit Euler) to them and to the force scale.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn evaluate(
+    packed: &PackedPatch,
+    pattern: &Pattern,
+    filter: Filter,
+    inertia: Option<&Inertia>,
+    grad: &mut [f64],
+    values: &mut [f64],
+    out: &mut FrameOutcome,
+) -> Assembly {
+    let clock = std::time::Instant::now();
+    let mut a = assemble(&packed.elements, pattern, &packed.state.x, filter, grad, values);
+    out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
+    if let Some(inr) = inertia {
+        a.force_scale += inr.add_to(pattern, &packed.state.x, grad, values);
+    }
+    a
 }
 
 /// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false

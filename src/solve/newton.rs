@@ -6,8 +6,8 @@ use glam::DVec3;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
-    factorize_shifted, line_search, mean_abs_diagonal, step, symmetric_product, symmetric_product_into, FrameOutcome,
-    FrameStart, MAX_ESCAPES, ROUND_OFF,
+    evaluate, factorize_shifted, line_search, mean_abs_diagonal, step, symmetric_product, symmetric_product_into,
+    FrameOutcome, FrameStart, MAX_ESCAPES, ROUND_OFF,
 };
 use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
@@ -34,173 +34,240 @@ pub(super) fn newton(
     let start = FrameStart::begin(packed, settings, dt);
     let inertia = start.inertia();
     let total = |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
-
     let energy_scale = packed.elements.energy_scale(packed.length_scale);
-    let mut grad = vec![0.0; n];
-    let mut values = vec![0.0; pattern.nnz()];
-    let mut dx = vec![0.0; n];
-    let mut scratch = Vec::new();
-    let mut out = FrameOutcome::default();
-    let mut progress = Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n);
+    let mut it = Loop {
+        energy_scale,
+        grad: vec![0.0; n],
+        values: vec![0.0; pattern.nnz()],
+        dx: vec![0.0; n],
+        scratch: Vec::new(),
+        out: FrameOutcome::default(),
+        progress: Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n),
+    };
 
     loop {
-        let filter = progress.filter();
-        let clock = std::time::Instant::now();
-        let Assembly { parts, mut force_scale } =
-            assemble(&packed.elements, pattern, &packed.state.x, filter, &mut grad, &mut values);
-        out.counters.assemble_ms += clock.elapsed().as_secs_f64() * 1e3;
-        if let Some(inr) = &inertia {
-            force_scale += inr.add_to(pattern, &packed.state.x, &mut grad, &mut values);
-        }
+        let filter = it.progress.filter();
+        let Assembly { parts, force_scale } =
+            evaluate(packed, pattern, filter, inertia.as_ref(), &mut it.grad, &mut it.values, &mut it.out);
         let phi = total(&parts, &packed.state.x);
-        let gnorm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
+        let gnorm = it.grad.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
             let quantity = if phi.is_finite() { Quantity::Gradient } else { Quantity::Energy };
-            return Err(SolveError::NonFinite { quantity, iterations: out.iterations });
+            return Err(SolveError::NonFinite { quantity, iterations: it.out.iterations });
         }
-        let residual = progress.residual(gnorm, force_scale);
-        out.energy = phi;
-        out.parts = parts;
-        out.residual = residual;
-        if progress.first() && out.escapes == 0 {
-            out.start_energy = phi;
+        let residual = it.progress.residual(gnorm, force_scale);
+        (it.out.energy, it.out.parts, it.out.residual) = (phi, parts, residual);
+        if it.progress.first() && it.out.escapes == 0 {
+            it.out.start_energy = phi;
         }
-        if progress.record(residual) {
-            out.converged = true;
-            let check = settings.stability_check && inertia.is_none() && n > 0 && out.escapes < MAX_ESCAPES;
-            if check {
-                if filter != Filter::Exact {
-                    assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut grad, &mut values);
-                }
-                let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
-                let settle = out.escapes > 0 && out.iterations < settings.max_iterations;
-                let clock = std::time::Instant::now();
-                let left = match settings.stability_test {
-                    StabilityTest::Inertia => {
-                        leave_unstable(packed, pattern, chol, &values, &grad, phi, energy_scale, settle, &energy_at)
-                    }
-                    StabilityTest::ShiftedCholesky => {
-                        leave_saddle(packed, pattern, chol, &values, phi, energy_scale, &energy_at)
-                            .map_or(Leave::Stay, Leave::Escape)
-                    }
-                };
-                out.counters.stability_ms += clock.elapsed().as_secs_f64() * 1e3;
-                match left {
-                    Leave::Stay => {}
-                    Leave::Escape(x) => {
-                        packed.state.x = x;
-                        out.escapes += 1;
-                        out.converged = false;
-                        progress.restart();
-                        continue;
-                    }
-                    Leave::Settle(dx) => {
-                        out.converged = false;
-                        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-                        let (tol, total) = (settings.tolerance, &total);
-                        if line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, tol, total, &mut out) {
-                            continue;
-                        }
-                    }
-                }
+        let at = Point { phi, residual, filter };
+        if it.progress.record(residual) {
+            it.out.converged = true;
+            let check = settings.stability_check && inertia.is_none() && n > 0 && it.out.escapes < MAX_ESCAPES;
+            if check && it.leave(packed, pattern, chol, settings, &at, &total) {
+                continue;
             }
             break;
         }
-        if out.iterations >= settings.max_iterations {
+        if it.out.iterations >= settings.max_iterations {
             break;
         }
         // Search direction: H dx = -g. Krylov mode first tries CG preconditioned by the last
         // factor (inexact Newton: relative tolerance min(0.1, sqrt(residual))).
         let krylov = (settings.linear, chol.is_factored() && settings.mode != SolveMode::LinearizedEuler);
         if let (LinearSolver::Krylov { max_iterations }, true) = krylov {
-            let clock = std::time::Instant::now();
-            let b: Vec<f64> = grad.iter().map(|g| -g).collect();
-            let tol = 0.1f64.min(residual.sqrt()) * gnorm;
-            let cg = pcg(pattern, &values, chol, &b, &mut dx, tol, max_iterations);
-            out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
-            out.cg_iterations += cg.unwrap_or_else(|e| e);
-            if cg.is_ok() {
-                let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-                if slope < 0.0 {
-                    if line_search(
-                        packed,
-                        pattern,
-                        &dx,
-                        slope,
-                        phi,
-                        residual,
-                        energy_scale,
-                        settings.tolerance,
-                        &total,
-                        &mut out,
-                    ) {
-                        continue;
-                    }
-                    break;
-                }
+            match it.krylov_step(packed, pattern, chol, settings, &at, gnorm, max_iterations, &total) {
+                Some(true) => continue,
+                Some(false) => break,
+                None => {}
             }
         }
-        // Direct: factorize H, shifting the diagonal if it is not positive definite.
+        if !it.direct_direction(packed, pattern, chol, settings, &at, gnorm)? {
+            it.progress.projecting = true; // H15: fall back to the projected Hessian
+            continue;
+        }
+        if settings.mode == SolveMode::LinearizedEuler {
+            let x0 = packed.state.x.clone();
+            step(&mut packed.state.x, &x0, &pattern.dof, &it.dx, 1.0);
+            (it.out.iterations, it.out.converged) = (1, true);
+            break;
+        }
+        if !it.line_search(packed, pattern, settings, &at, &total) {
+            break;
+        }
+    }
+    start.finish(packed);
+    Ok(it.out)
+}
+
+/// The unconstrained loop's buffers and record.
+struct Loop {
+    energy_scale: f64,
+    grad: Vec<f64>,
+    values: Vec<f64>,
+    dx: Vec<f64>,
+    /// The shifted Hessian's values when H itself does not factorize.
+    scratch: Vec<f64>,
+    out: FrameOutcome,
+    progress: Progress,
+}
+
+/// The iterate: its potential, relative residual and the Hessian filter it was assembled with.
+struct Point {
+    phi: f64,
+    residual: f64,
+    filter: Filter,
+}
+
+type Total<'a> = dyn Fn(&EnergyParts, &[DVec3]) -> f64 + 'a;
+
+impl Loop {
+    /// Armijo backtracking along `dx` (`iteration::line_search`); false when no step is taken.
+    fn line_search(
+        &mut self,
+        packed: &mut PackedPatch,
+        pattern: &Pattern,
+        settings: &SolverSettings,
+        at: &Point,
+        total: &Total,
+    ) -> bool {
+        let slope: f64 = self.dx.iter().zip(&self.grad).map(|(a, b)| a * b).sum();
+        let (phi, residual, scale, tol) = (at.phi, at.residual, self.energy_scale, settings.tolerance);
+        line_search(packed, pattern, &self.dx, slope, phi, residual, scale, tol, total, &mut self.out)
+    }
+
+    /// At a converged point, the stability check (`settings.stability_test`): true when the
+    /// solve goes on (a saddle left, or an exact step still to settle), false when it stops.
+    fn leave(
+        &mut self,
+        packed: &mut PackedPatch,
+        pattern: &Pattern,
+        chol: &mut CholeskySolver,
+        settings: &SolverSettings,
+        at: &Point,
+        total: &Total,
+    ) -> bool {
+        if at.filter != Filter::Exact {
+            assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut self.grad, &mut self.values);
+        }
+        let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
+        let settle = self.out.escapes > 0 && self.out.iterations < settings.max_iterations;
         let clock = std::time::Instant::now();
-        let factorized = chol.factorize(pattern, &values);
-        out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
-        let mut factorized_matrix = &values;
-        if factorized.is_err() {
-            if filter == Filter::Exact && settings.projection == Projection::Adaptive {
-                progress.projecting = true; // H15: fall back to the projected Hessian
-                continue;
+        let (values, grad, scale) = (&self.values, &self.grad, self.energy_scale);
+        let left = match settings.stability_test {
+            StabilityTest::Inertia => {
+                leave_unstable(packed, pattern, chol, values, grad, at.phi, scale, settle, &energy_at)
             }
-            out.regularized += 1;
-            if factorize_shifted(chol, pattern, &values, &mut scratch, 1e-8, 100.0, 8).is_none() {
+            StabilityTest::ShiftedCholesky => leave_saddle(packed, pattern, chol, values, at.phi, scale, &energy_at)
+                .map_or(Leave::Stay, Leave::Escape),
+        };
+        self.out.counters.stability_ms += clock.elapsed().as_secs_f64() * 1e3;
+        match left {
+            Leave::Stay => false,
+            Leave::Escape(x) => {
+                packed.state.x = x;
+                self.out.escapes += 1;
+                self.out.converged = false;
+                self.progress.restart();
+                true
+            }
+            Leave::Settle(dx) => {
+                self.out.converged = false;
+                self.dx.copy_from_slice(&dx);
+                self.line_search(packed, pattern, settings, at, total)
+            }
+        }
+    }
+
+    /// Krylov mode: CG preconditioned by the last factor, then the line search when it gives a
+    /// descent direction: Some(whether a step was taken), None to fall back to a factorization.
+    #[allow(clippy::too_many_arguments)]
+    fn krylov_step(
+        &mut self,
+        packed: &mut PackedPatch,
+        pattern: &Pattern,
+        chol: &mut CholeskySolver,
+        settings: &SolverSettings,
+        at: &Point,
+        gnorm: f64,
+        max_iterations: u32,
+        total: &Total,
+    ) -> Option<bool> {
+        let clock = std::time::Instant::now();
+        let b: Vec<f64> = self.grad.iter().map(|g| -g).collect();
+        let tol = 0.1f64.min(at.residual.sqrt()) * gnorm;
+        let cg = pcg(pattern, &self.values, chol, &b, &mut self.dx, tol, max_iterations);
+        self.out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+        self.out.cg_iterations += cg.unwrap_or_else(|e| e);
+        if cg.is_ok() {
+            let slope: f64 = self.dx.iter().zip(&self.grad).map(|(a, b)| a * b).sum();
+            if slope < 0.0 {
+                return Some(self.line_search(packed, pattern, settings, at, total));
+            }
+        }
+        None
+    }
+
+    /// The direct Newton direction into `dx`: H factorized, its diagonal shifted if it is not
+    /// positive definite, solved (refined in f64 under mixed precision); steepest descent where
+    /// round-off leaves no descent direction. False when the exact Hessian should give way to
+    /// the projected one first (`Projection::Adaptive`).
+    fn direct_direction(
+        &mut self,
+        packed: &PackedPatch,
+        pattern: &Pattern,
+        chol: &mut CholeskySolver,
+        settings: &SolverSettings,
+        at: &Point,
+        gnorm: f64,
+    ) -> Result<bool, SolveError> {
+        let adaptive = at.filter == Filter::Exact && settings.projection == Projection::Adaptive;
+        let clock = std::time::Instant::now();
+        let factorized = chol.factorize(pattern, &self.values);
+        self.out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+        let mut factorized_matrix = &self.values;
+        if factorized.is_err() {
+            if adaptive {
+                return Ok(false);
+            }
+            self.out.regularized += 1;
+            if factorize_shifted(chol, pattern, &self.values, &mut self.scratch, 1e-8, 100.0, 8).is_none() {
                 return Err(SolveError::Unfactorizable);
             }
-            factorized_matrix = &scratch;
+            factorized_matrix = &self.scratch;
         }
         let clock = std::time::Instant::now();
         if chol.precision() == Precision::F32 {
             // Mixed precision: the f32 factor's solve refined in f64 by CG on the matrix it
             // factorizes (one pass of CG from the f32 solve is the first iterate).
-            let b: Vec<f64> = grad.iter().map(|g| -g).collect();
-            let refined = pcg(pattern, factorized_matrix, chol, &b, &mut dx, REFINED * gnorm, MAX_REFINEMENTS);
-            out.cg_iterations += refined.unwrap_or_else(|e| e);
-            if dx.iter().all(|&d| d == 0.0) {
+            let b: Vec<f64> = self.grad.iter().map(|g| -g).collect();
+            let refined = pcg(pattern, factorized_matrix, chol, &b, &mut self.dx, REFINED * gnorm, MAX_REFINEMENTS);
+            self.out.cg_iterations += refined.unwrap_or_else(|e| e);
+            if self.dx.iter().all(|&d| d == 0.0) {
                 // (CG met round-off curvature at once: the f32 solve alone)
-                dx.copy_from_slice(&b);
-                chol.solve(&mut dx);
+                self.dx.copy_from_slice(&b);
+                chol.solve(&mut self.dx);
             }
         } else {
-            for (d, g) in dx.iter_mut().zip(&grad) {
+            for (d, g) in self.dx.iter_mut().zip(&self.grad) {
                 *d = -g;
             }
-            chol.solve(&mut dx);
+            chol.solve(&mut self.dx);
         }
-        out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
-        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
+        self.out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
+        let slope: f64 = self.dx.iter().zip(&self.grad).map(|(a, b)| a * b).sum();
         if slope.is_nan() || slope >= 0.0 {
-            if filter == Filter::Exact && settings.projection == Projection::Adaptive {
-                progress.projecting = true;
-                continue;
+            if adaptive {
+                return Ok(false);
             }
             // Not a descent direction (round-off at convergence): fall back to steepest descent.
             let scale = 1.0 / gnorm.max(f64::MIN_POSITIVE) * 1e-6 * packed.length_scale;
-            for (d, g) in dx.iter_mut().zip(&grad) {
+            for (d, g) in self.dx.iter_mut().zip(&self.grad) {
                 *d = -g * scale;
             }
         }
-        if settings.mode == SolveMode::LinearizedEuler {
-            let x0 = packed.state.x.clone();
-            step(&mut packed.state.x, &x0, &pattern.dof, &dx, 1.0);
-            (out.iterations, out.converged) = (1, true);
-            break;
-        }
-        let slope: f64 = dx.iter().zip(&grad).map(|(a, b)| a * b).sum();
-        if !line_search(packed, pattern, &dx, slope, phi, residual, energy_scale, settings.tolerance, &total, &mut out)
-        {
-            break;
-        }
+        Ok(true)
     }
-    start.finish(packed);
-    Ok(out)
 }
 
 fn max_abs(v: &[f64]) -> f64 {

@@ -238,8 +238,8 @@ impl FilmSubstrate {
         for i in 1..=self.increments {
             let stats = sim.step();
             let p = &stats.patches[0];
-            out.newton_iterations += p.newton_iterations;
-            out.all_converged &= p.converged;
+            out.newton_iterations += p.outcome.iterations;
+            out.all_converged &= p.outcome.converged;
             out.vertices = p.vertices;
             out.tets = p.tets;
             let (material, positions): (Vec<_>, Vec<_>) = sim.layer_points("bilayer", "film").into_iter().unzip();

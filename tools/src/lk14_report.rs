@@ -511,9 +511,9 @@ fn run(
         share.add(&s);
         // (the swept layer's own vertices, counted outside the timed step)
         vertices += sim.layer_mesh("skin", case.layer).0.len() as f64;
-        iterations += s.patches[0].newton_iterations;
-        unconverged += u32::from(!s.patches[0].converged);
-        energy = s.patches[0].energy;
+        iterations += s.patches[0].outcome.iterations;
+        unconverged += u32::from(!s.patches[0].outcome.converged);
+        energy = s.patches[0].outcome.energy;
         remeshes += remeshed(&mut sim, case.layer, s.frame);
     }
     let frames = built.scene.frames as f64;
@@ -729,7 +729,7 @@ fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<
             return Err(f.into());
         }
         if remeshed(sim, layer, s.frame) == 1 {
-            held.each[held.changed as usize] = s.patches[0].newton_iterations;
+            held.each[held.changed as usize] = s.patches[0].outcome.iterations;
             held.changed += 1;
         }
     }
@@ -746,7 +746,7 @@ fn held_remeshes(sim: &mut Simulation, layer: &str) -> Result<HeldRemeshes, Box<
 fn settle(sim: &mut Simulation) -> Result<Vec<u32>, Box<dyn std::error::Error>> {
     let mut iterations = Vec::new();
     while iterations.len() < SETTLE_FRAMES as usize && iterations.last() != Some(&0) {
-        iterations.push(sim.step().patches[0].newton_iterations);
+        iterations.push(sim.step().patches[0].outcome.iterations);
         if let Some(f) = sim.failure() {
             return Err(f.into());
         }

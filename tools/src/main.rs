@@ -485,7 +485,7 @@ fn run(args: RunArgs) -> ExitCode {
                 break;
             }
         }
-        let iters: u32 = frame.patches.iter().map(|p| p.newton_iterations).sum();
+        let iters: u32 = frame.patches.iter().map(|p| p.outcome.iterations).sum();
         bar.set_message(format!("{iters} Newton its, {:.0} ms/frame", frame.total_ms()));
         bar.inc(1);
         if let Some(reason) = sim.failure() {
@@ -494,8 +494,9 @@ fn run(args: RunArgs) -> ExitCode {
             status = ExitCode::from(1);
             break;
         }
-        for p in frame.patches.iter().filter(|p| !p.converged) {
-            unconverged.push(format!("frame {} patch \"{}\" (residual {:.2e})", frame.frame, p.name, p.residual));
+        for p in frame.patches.iter().filter(|p| !p.outcome.converged) {
+            unconverged
+                .push(format!("frame {} patch \"{}\" (residual {:.2e})", frame.frame, p.name, p.outcome.residual));
         }
         if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
             bar.abandon();

@@ -87,8 +87,8 @@ impl SkinSection {
         for frame in 1..=scene.scene.frames {
             let stats = sim.step();
             let p = &stats.patches[0];
-            out.newton_iterations += p.newton_iterations;
-            out.all_converged &= p.converged;
+            out.newton_iterations += p.outcome.iterations;
+            out.all_converged &= p.outcome.converged;
             out.vertices = p.vertices;
             let (material, positions): (Vec<_>, Vec<_>) = sim.layer_points("skin", "corneum").into_iter().unzip();
             let prof = profile(&positions, &material, 0);

@@ -81,9 +81,9 @@ pub fn time_scene(path: &Path, frames: Option<u32>) -> Result<TimingRow, String>
             return Err(format!("{}: {reason}", path.display()));
         }
         let ms = |stage: Stage| s.timing(stage) / 1e3;
-        row.kernels += s.patches.iter().map(|p| p.constraints as f64 / 3.0).sum::<f64>();
+        row.kernels += s.patches.iter().map(|p| p.outcome.constraints as f64 / 3.0).sum::<f64>();
         row.vertices += s.patches.iter().map(|p| p.vertices as f64).sum::<f64>();
-        row.newton_iterations += s.patches.iter().map(|p| p.newton_iterations as f64).sum::<f64>();
+        row.newton_iterations += s.patches.iter().map(|p| p.outcome.iterations as f64).sum::<f64>();
         row.t_c += ms(Stage::Assemble);
         row.t_i += ms(Stage::Motion) + ms(Stage::Solve) + ms(Stage::Writeback);
         row.t_r += T_R.iter().map(|&k| ms(k)).sum::<f64>();

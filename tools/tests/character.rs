@@ -20,7 +20,7 @@ fn the_finger_wrinkles_over_its_knuckle_at_the_kernel_wavelength() {
     let clock = std::time::Instant::now();
     for frame in 1..=built.scene.frames {
         let s = sim.step();
-        assert!(sim.failure().is_none() && s.patches[0].converged, "frame {frame}: {:?}", s.patches[0]);
+        assert!(sim.failure().is_none() && s.patches[0].outcome.converged, "frame {frame}: {:?}", s.patches[0]);
     }
     let per_frame = clock.elapsed().as_secs_f64() / built.scene.frames as f64;
     // The skin's height over the bone along the bone's normals (the skin is the bone's offset:
@@ -139,7 +139,7 @@ fn the_hand_carries_two_knuckle_patches_and_a_sleeve_on_one_body() {
         let s = sim.step();
         assert!(sim.failure().is_none(), "frame {frame}: {:?}", sim.failure());
         assert_eq!(s.patches.len(), 3);
-        assert!(s.patches.iter().all(|p| p.converged), "frame {frame}: {:?}", s.patches);
+        assert!(s.patches.iter().all(|p| p.outcome.converged), "frame {frame}: {:?}", s.patches);
     }
     let per_frame = clock.elapsed().as_secs_f64() / built.scene.frames as f64;
     // One body layer in the world, not one per patch.
@@ -260,7 +260,7 @@ fn the_curved_sheet_wrinkles_shorter_where_it_is_thinner() {
     let mut sim = Simulation::new(&built);
     for frame in 1..=built.scene.frames {
         let s = sim.step();
-        assert!(sim.failure().is_none() && s.patches[0].converged, "frame {frame}: {:?}", s.patches[0]);
+        assert!(sim.failure().is_none() && s.patches[0].outcome.converged, "frame {frame}: {:?}", s.patches[0]);
     }
     // Heights over the base along its normals (the skin is the base's offset: same vertices).
     let (_, base, faces) = sim.layer_surface("sheet", "base");

@@ -252,7 +252,7 @@ fn a_refined_patch_follows_rigid_skinned_and_morphed_motion_on_the_limit_surface
     for (frame, (&(root_deg, child_deg, morph), name)) in keys.iter().zip(what).enumerate() {
         let s = sim.step();
         assert!(sim.failure().is_none(), "frame {}: {:?}", frame + 1, sim.failure());
-        assert!(s.patches.iter().all(|p| p.converged), "frame {}: {:?}", frame + 1, s.patches);
+        assert!(s.patches.iter().all(|p| p.outcome.converged), "frame {}: {:?}", frame + 1, s.patches);
         let body = sim.layer_positions("tube", "tube");
         let surface = sim.layer_positions("top", "surface");
         let mine = pose(root_deg, child_deg, morph);
@@ -383,7 +383,7 @@ fn squash(uv_scale: f32) -> Squash {
     for frame in 1..=built.scene.frames {
         let s = sim.step();
         assert!(sim.failure().is_none(), "UVs x {uv_scale}, frame {frame}: {:?}", sim.failure());
-        assert!(s.patches.iter().all(|p| p.converged), "UVs x {uv_scale}, frame {frame}: {:?}", s.patches);
+        assert!(s.patches.iter().all(|p| p.outcome.converged), "UVs x {uv_scale}, frame {frame}: {:?}", s.patches);
     }
     let seconds_per_frame = clock.elapsed().as_secs_f64() / f64::from(built.scene.frames);
     // The skin is the surface's offset, vertex for vertex (the same faces over the same order).

@@ -25,7 +25,7 @@ fn run_converged(built: &BuiltScene) -> (Simulation, f64) {
         let s = sim.step();
         assert!(sim.failure().is_none(), "frame {frame}: {:?}", sim.failure());
         for p in &s.patches {
-            assert!(p.converged, "frame {frame}, patch {}: {} iterations", p.name, p.newton_iterations);
+            assert!(p.outcome.converged, "frame {frame}, patch {}: {} iterations", p.name, p.outcome.iterations);
         }
     }
     (sim, clock.elapsed().as_secs_f64() / built.scene.frames as f64)

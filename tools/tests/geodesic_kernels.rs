@@ -98,7 +98,7 @@ fn wavelength(uvs: Uvs, distance: &str) -> (f64, bool) {
     let mut converged = true;
     for _ in 0..built.scene.frames {
         let s = sim.step();
-        converged &= s.patches.iter().all(|p| p.converged);
+        converged &= s.patches.iter().all(|p| p.outcome.converged);
     }
     // Rows along x at their unrolled surface coordinates (the skin's vertices are the base's,
     // offset, in the same order).

@@ -40,11 +40,11 @@ fn run(name: &str, frames: Option<u32>) -> Vec<Frame> {
         .map(|_| {
             let stats = sim.step();
             let p = &stats.patches[0];
-            assert!(p.converged && p.energy.is_finite(), "{name} frame {}: {p:?}", stats.frame);
+            assert!(p.outcome.converged && p.outcome.energy.is_finite(), "{name} frame {}: {p:?}", stats.frame);
             let pts = sim.layer_points("skin", "corneum");
             let (material, positions): (Vec<_>, Vec<_>) = pts.into_iter().unzip();
             let prof = profile(&positions, &material, 0);
-            Frame { peaks: peaks(&prof, false, COUNTED), amplitude: amplitude(&prof), inverted: p.inverted }
+            Frame { peaks: peaks(&prof, false, COUNTED), amplitude: amplitude(&prof), inverted: p.outcome.inverted }
         })
         .collect()
 }

@@ -25,8 +25,8 @@ fn correlation(randomized: bool) -> f64 {
     let mut sim = Simulation::new(&built);
     for frame in 1..=built.scene.frames {
         let s = sim.step();
-        assert!(sim.failure().is_none() && s.patches[0].converged, "frame {frame}: {:?}", s.patches[0]);
-        assert_eq!(s.patches[0].inverted, 0);
+        assert!(sim.failure().is_none() && s.patches[0].outcome.converged, "frame {frame}: {:?}", s.patches[0]);
+        assert_eq!(s.patches[0].outcome.inverted, 0);
     }
     let (uv, pos, _) = sim.layer_surface("skin", "corneum");
     line_correlation(&pos, &uv, 0, 0.25, 0.75)

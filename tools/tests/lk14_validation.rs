@@ -33,8 +33,8 @@ fn wrinkles_of(built: &scene::BuiltScene, file: &str, layer: &str) -> ((Vec<Peak
     for _ in 0..built.scene.frames {
         let stats = sim.step();
         assert!(sim.failure().is_none(), "{file}: {:?}", sim.failure());
-        converged &= stats.patches.iter().all(|p| p.converged);
-        escapes += stats.patches.iter().map(|p| p.escapes).sum::<u32>();
+        converged &= stats.patches.iter().all(|p| p.outcome.converged);
+        escapes += stats.patches.iter().map(|p| p.outcome.escapes).sum::<u32>();
     }
     let per_frame = clock.elapsed().as_secs_f64() / built.scene.frames as f64;
     let (uv, pos): (Vec<_>, Vec<_>) = sim.layer_points("skin", layer).into_iter().unzip();

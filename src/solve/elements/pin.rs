@@ -46,8 +46,9 @@ impl Element for PinElem {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solve::element::{Local, Term};
+    use crate::solve::element::Term;
     use crate::solve::elements::Elements;
+    use crate::solve::scatter::Local;
 
     /// The gradient and Hessian against central differences of the energy, at a point off the
     /// target in every axis, through the element and through the registered list.
