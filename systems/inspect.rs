@@ -4,6 +4,7 @@
 use bevy_ecs::prelude::*;
 use skinsim::model::*;
 
+use crate::layer_arrays::LayerArrays;
 use crate::Simulation;
 
 impl Simulation {
@@ -11,21 +12,10 @@ impl Simulation {
     /// the first two). Empty for an unknown layer.
     pub fn layer_mesh(&mut self, patch: &str, layer: &str) -> (Vec<glam::DVec2>, Vec<glam::DVec3>, Vec<[u32; 3]>) {
         let Some(l) = self.find_layer(patch, layer) else { return Default::default() };
-        let verts: Vec<Entity> = self.world.get::<LayerVertices>(l).map(|v| v.entities().to_vec()).unwrap_or_default();
-        let index: std::collections::HashMap<Entity, u32> =
-            verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
-        let faces = self.world.get::<LayerFaces>(l).map(|f| f.entities().to_vec()).unwrap_or_default();
-        let tris = faces
-            .iter()
-            .filter_map(|&f| self.world.get::<FaceVerts>(f))
-            .filter_map(|f| {
-                let t = f.0.map(|v| index.get(&v).copied());
-                Some([t[0]?, t[1]?, t[2]?])
-            })
-            .collect();
-        let uv = verts.iter().map(|&v| self.world.get::<MaterialPos>(v).unwrap().0).collect();
-        let x = verts.iter().map(|&v| self.world.get::<Position>(v).unwrap().0).collect();
-        (uv, x, tris)
+        let (a, world) = (LayerArrays::of(&self.world, l), &self.world);
+        let uv = a.map(|&v| world.get::<MaterialPos>(v).unwrap().0);
+        let x = a.map(|&v| world.get::<Position>(v).unwrap().0);
+        (uv, x, a.tris)
     }
 
     /// Every vertex a layer's elements use (its own and those it shares with the layer below),

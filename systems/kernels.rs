@@ -10,6 +10,8 @@ use skinsim::coupling::geodesic::SurfaceSpace;
 use skinsim::coupling::kernels::{adjust, sample, vertex_areas, KernelDistance, Sample, SupportIndex};
 use skinsim::model::*;
 
+use crate::layer_arrays::LayerArrays;
+
 /// One layer's material-space mesh, indexed for support queries.
 struct LayerSpace {
     vertices: Vec<Entity>,
@@ -76,15 +78,11 @@ fn surface_space(
     faces: &Query<&FaceVerts>,
 ) -> (Vec<Entity>, SurfaceSpace) {
     let (_, verts, lfaces) = layers.get(layer).expect("a kernel's layer");
-    let vertices = verts.entities().to_vec();
-    let slot: HashMap<Entity, u32> = vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
-    let uv: Vec<DVec2> = vertices.iter().map(|&v| points.get(v).map_or(DVec2::ZERO, |p| p.0)).collect();
-    let x: Vec<glam::DVec3> = vertices.iter().map(|&v| rest.get(v).map_or(glam::DVec3::ZERO, |p| p.0)).collect();
-    let tris: Vec<[u32; 3]> = lfaces
-        .map(|f| f.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|fv| fv.0.map(|e| slot[&e])).collect())
-        .unwrap_or_default();
-    let space = SurfaceSpace::new(&x, &uv, &tris);
-    (vertices, space)
+    let a = LayerArrays::queried(verts, lfaces, faces);
+    let uv = a.map(|&v| points.get(v).map_or(DVec2::ZERO, |p| p.0));
+    let x = a.map(|&v| rest.get(v).map_or(glam::DVec3::ZERO, |p| p.0));
+    let space = SurfaceSpace::new(&x, &uv, &a.tris);
+    (a.vertices, space)
 }
 
 fn layer_space(
@@ -94,14 +92,10 @@ fn layer_space(
     faces: &Query<&FaceVerts>,
 ) -> LayerSpace {
     let (_, verts, lfaces) = layers.get(layer).expect("a kernel's layer");
-    let vertices = verts.entities().to_vec();
-    let slot: HashMap<Entity, u32> = vertices.iter().enumerate().map(|(i, &e)| (e, i as u32)).collect();
-    let pts: Vec<DVec2> = vertices.iter().map(|&v| points.get(v).map_or(DVec2::ZERO, |p| p.0)).collect();
-    let tris: Vec<[u32; 3]> = lfaces
-        .map(|f| f.entities().iter().filter_map(|&f| faces.get(f).ok()).map(|fv| fv.0.map(|e| slot[&e])).collect())
-        .unwrap_or_default();
-    let area = vertex_areas(&pts, &tris);
-    LayerSpace { index: SupportIndex::new(&pts), vertices, area }
+    let a = LayerArrays::queried(verts, lfaces, faces);
+    let pts = a.map(|&v| points.get(v).map_or(DVec2::ZERO, |p| p.0));
+    let area = vertex_areas(&pts, &a.tris);
+    LayerSpace { index: SupportIndex::new(&pts), vertices: a.vertices, area }
 }
 
 pub fn adjust_kernels(

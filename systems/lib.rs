@@ -7,6 +7,7 @@ pub mod attach;
 pub mod capture;
 pub mod inspect;
 pub mod kernels;
+mod layer_arrays;
 pub mod log;
 pub mod log_anchors;
 mod log_mesh;

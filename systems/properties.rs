@@ -8,8 +8,9 @@
 use std::collections::HashMap;
 
 use bevy_ecs::prelude::*;
-use glam::DVec2;
 use skinsim::model::*;
+
+use crate::layer_arrays::LayerArrays;
 
 pub fn resample_properties(world: &mut World) {
     let faces: Vec<(Entity, [Entity; 3], Entity)> = world
@@ -90,19 +91,11 @@ impl LayerData {
 /// The layer's lumped masses, recomputed from its rest mesh (as at spawn).
 fn lump_masses(world: &mut World, layer: Entity, data: &LayerData) {
     let (Some(density), Some(rules)) = (world.get::<Material>(layer).map(|m| m.density), data.rules()) else { return };
-    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
-    let slot: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
-    let faces: Vec<[u32; 3]> = world
-        .get::<LayerFaces>(layer)
-        .map_or(&[][..], |f| f.entities())
-        .iter()
-        .filter_map(|&f| world.get::<FaceVerts>(f))
-        .map(|f| f.0.map(|v| slot[&v]))
-        .collect();
-    let rest: Vec<_> = verts.iter().map(|&v| world.get::<RestPos>(v).expect("vertex").0).collect();
-    let uv: Vec<DVec2> = verts.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0).collect();
-    let mass = rules.masses(density, &rest, &uv, &faces);
-    for (v, m) in verts.into_iter().zip(mass) {
+    let a = LayerArrays::of(world, layer);
+    let rest = a.map(|&v| world.get::<RestPos>(v).expect("vertex").0);
+    let uv = a.map(|&v| world.get::<MaterialPos>(v).expect("vertex").0);
+    let mass = rules.masses(density, &rest, &uv, &a.tris);
+    for (v, m) in a.vertices.into_iter().zip(mass) {
         world.entity_mut(v).insert(Mass(m));
     }
 }

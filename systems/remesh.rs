@@ -5,17 +5,15 @@
 //! in), removed ones despawned, and the layer's topology epoch bumped so that kernels, the solver
 //! pattern and the render mesh follow.
 
-use std::collections::HashMap;
-
 use bevy_ecs::prelude::*;
 use glam::{DMat2, DVec2, DVec3};
 use skinsim::coupling::kernels::layers_below;
 use skinsim::mesh::imperfection::remesh_under;
-use skinsim::mesh::remesh::sizing::{
-    add_wavelength_terms, face_centroids, grow_terms, held_faces, WavelengthSizing, HOLD_SLACK,
-};
+use skinsim::mesh::remesh::sizing::{held_faces, wavelength_terms, LowerLayer, WavelengthSizing, HOLD_SLACK};
 use skinsim::mesh::remesh::RemeshVertex;
 use skinsim::model::*;
+
+use crate::layer_arrays::LayerArrays;
 
 pub fn remesh_layers(world: &mut World) {
     let frame = world.resource::<SimClock>().frame;
@@ -40,10 +38,10 @@ pub fn remesh_layers(world: &mut World) {
 }
 
 fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, kernels: &[Kernel], frame: u32) {
-    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
+    let arrays = LayerArrays::of(world, layer);
     let old_faces: Vec<Entity> = world.get::<LayerFaces>(layer).map_or(Vec::new(), |f| f.entities().to_vec());
-    let index: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
-    let input: Vec<RemeshVertex> = verts
+    let input: Vec<RemeshVertex> = arrays
+        .vertices
         .iter()
         .map(|&v| {
             let e = world.entity(v);
@@ -58,10 +56,10 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
         })
         .collect();
     let tris: Vec<[Entity; 3]> = old_faces.iter().map(|&f| world.get::<FaceVerts>(f).expect("face").0).collect();
-    let faces: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| index[&v])).collect();
+    let (verts, faces) = (arrays.vertices, arrays.tris);
     let imperfection = world.get::<LayerImperfection>(layer).map(|i| i.0.clone());
     let extra = match settings.wavelength {
-        Some(w) => wavelength_terms(world, layer, kernels, (&input, &faces), &w),
+        Some(w) => wavelength_terms_of(world, layer, kernels, (&input, &faces), &w),
         None => Vec::new(),
     };
     // (nothing is held at a layer's first remesh: nothing has been refined yet, and a start mesh
@@ -92,7 +90,7 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
 /// 4.1), the strain that of every layer below it (`coupling::kernels::layers_below`); under
 /// `lookahead` of the kinematic ones only, now and at their later keyframes, so that what the
 /// layers between take once wrinkled does not refine the driver's mesh again (design note).
-fn wavelength_terms(
+fn wavelength_terms_of(
     world: &World,
     layer: Entity,
     kernels: &[Kernel],
@@ -102,23 +100,20 @@ fn wavelength_terms(
     let centres: Vec<(DVec2, f64)> =
         kernels.iter().filter(|k| k.upper == layer).map(|k| (k.shape.centre, 2.0 * k.shape.radius)).collect();
     let Some(thickness) = world.get::<Thickness>(layer).map(|t| t.0) else { return Vec::new() };
-    let uv: Vec<DVec2> = input.iter().map(|v| v.uv).collect();
-    let centroids = face_centroids(&uv, faces);
     let couplings: Vec<(Entity, Entity)> = kernels.iter().map(|k| (k.upper, k.lower)).collect();
     let frame = world.resource::<SimClock>().frame;
-    let mut terms = vec![DMat2::ZERO; faces.len()];
-    for below in layers_below(&couplings, layer) {
-        let later = match w.lookahead.then(|| keyframe_positions(world, below, frame)) {
+    let mut below = Vec::new();
+    for layer in layers_below(&couplings, layer) {
+        let later = match w.lookahead.then(|| keyframe_positions(world, layer, frame)) {
             None => Vec::new(),
             Some(Some(later)) => later,
             Some(None) => continue,
         };
-        let (uv, x, lower) = layer_arrays(world, below);
-        for x in std::iter::once(&x).chain(&later) {
-            add_wavelength_terms(&mut terms, &centroids, &centres, thickness, (&uv, x, &lower), w);
-        }
+        let (uv, x, faces) = layer_arrays(world, layer);
+        below.push(LowerLayer { uv, faces, poses: std::iter::once(x).chain(later).collect() });
     }
-    grow_terms(&terms, &centroids, w.margin)
+    let uv: Vec<DVec2> = input.iter().map(|v| v.uv).collect();
+    wavelength_terms(&uv, faces, &centres, thickness, &below, w)
 }
 
 /// The positions of a kinematic layer (every coordinate of every vertex prescribed) at each
@@ -140,11 +135,8 @@ fn keyframe_positions(world: &World, layer: Entity, frame: u32) -> Option<Vec<Ve
 
 /// A layer's material positions, positions and faces (empty for a layer without faces).
 fn layer_arrays(world: &World, layer: Entity) -> (Vec<DVec2>, Vec<DVec3>, Vec<[u32; 3]>) {
-    let verts: Vec<Entity> = world.get::<LayerVertices>(layer).map_or(Vec::new(), |v| v.entities().to_vec());
-    let index: HashMap<Entity, u32> = verts.iter().enumerate().map(|(i, &v)| (v, i as u32)).collect();
-    let uv = verts.iter().map(|&v| world.get::<MaterialPos>(v).expect("vertex").0).collect();
-    let x = verts.iter().map(|&v| world.get::<Position>(v).expect("vertex").0).collect();
-    let faces = world.get::<LayerFaces>(layer).map_or(Vec::new(), |f| f.entities().to_vec());
-    let faces = faces.iter().map(|&f| world.get::<FaceVerts>(f).expect("face").0.map(|v| index[&v])).collect();
-    (uv, x, faces)
+    let a = LayerArrays::of(world, layer);
+    let uv = a.map(|&v| world.get::<MaterialPos>(v).expect("vertex").0);
+    let x = a.map(|&v| world.get::<Position>(v).expect("vertex").0);
+    (uv, x, a.tris)
 }

@@ -317,6 +317,35 @@ pub fn add_wavelength_terms(
     }
 }
 
+/// A layer below the remeshed one, as its wavelength term reads it: material positions,
+/// faces, and the positions it is measured at (now, and under lookahead at later keyframes).
+pub struct LowerLayer {
+    pub uv: Vec<DVec2>,
+    pub faces: Vec<[u32; 3]>,
+    pub poses: Vec<Vec<DVec3>>,
+}
+
+/// The wavelength term of each face of a layer (material positions `uv`, `faces`; issue 26
+/// item 1): the largest any layer below asks at any of its poses (`add_wavelength_terms`),
+/// grown by `w.margin` (`grow_terms`).
+pub fn wavelength_terms(
+    uv: &[DVec2],
+    faces: &[[u32; 3]],
+    centres: &[(DVec2, f64)],
+    thickness: f64,
+    below: &[LowerLayer],
+    w: &WavelengthSizing,
+) -> Vec<DMat2> {
+    let centroids = face_centroids(uv, faces);
+    let mut terms = vec![DMat2::ZERO; faces.len()];
+    for lower in below {
+        for x in &lower.poses {
+            add_wavelength_terms(&mut terms, &centroids, centres, thickness, (&lower.uv, x, &lower.faces), w);
+        }
+    }
+    grow_terms(&terms, &centroids, w.margin)
+}
+
 /// Per-vertex metrics for a surface (REMESH.md): each face's clamped metric, then the
 /// material-area-weighted mean over a vertex's faces. `extra`, when not empty, holds one more
 /// term per face (the wavelength term), combined by `tensor_max` before the clamp.
