@@ -124,7 +124,7 @@ impl SurfaceSpace {
     /// centre vertex: centre = its material point, radius = lambda / 2, and for a support cut
     /// by the boundary a target offset (target - centre) equal to the chart centroid of the cut
     /// Gaussian, which the adjustment then reproduces on every layer.
-    pub fn build_kernels(&self, uv: &[DVec2], wavelength: &[f64], seed: u64) -> Vec<KernelShape> {
+    pub(crate) fn build_kernels(&self, uv: &[DVec2], wavelength: &[f64], seed: u64) -> Vec<KernelShape> {
         let edges: Vec<[u32; 2]> = crate::mesh::edges(&self.faces).iter().map(|e| e.v).collect();
         let locator = self.locator();
         super::kernels::cluster_by_length(&edges, wavelength, seed, |a, b| (self.rest[a] - self.rest[b]).length())
@@ -141,14 +141,14 @@ impl SurfaceSpace {
 }
 
 /// The weighted centroid of a sample's chart positions.
-pub fn chart_centroid(s: &SurfaceSample) -> DVec2 {
+pub(crate) fn chart_centroid(s: &SurfaceSample) -> DVec2 {
     let sum: f64 = s.sample.weights.iter().sum();
     s.chart.iter().zip(&s.sample.weights).map(|(c, &w)| *c * w).sum::<DVec2>() / sum
 }
 
 /// Shortest edge-path distances below `limit` from several sources with start distances, in
 /// increasing vertex order.
-pub fn bounded_distances(adjacency: &[Vec<(u32, f64)>], sources: &[(u32, f64)], limit: f64) -> Vec<(u32, f64)> {
+pub(crate) fn bounded_distances(adjacency: &[Vec<(u32, f64)>], sources: &[(u32, f64)], limit: f64) -> Vec<(u32, f64)> {
     let mut best: HashMap<u32, f64> = HashMap::new();
     let mut heap = BinaryHeap::new();
     for &(v, d) in sources {

@@ -23,21 +23,21 @@ pub const KERNEL_SCALE: f64 = 1.0 / 0.842;
 
 /// LK14 eq. 3.1: lambda = c (h_upper h_lower)^(1/2) (E_upper / E_lower)^(1/6), the constant c
 /// stated by the scene.
-pub fn wavelength_two_layer(constant: f64, h_upper: f64, h_lower: f64, e_upper: f64, e_lower: f64) -> f64 {
+pub(crate) fn wavelength_two_layer(constant: f64, h_upper: f64, h_lower: f64, e_upper: f64, e_lower: f64) -> f64 {
     constant * (h_upper * h_lower).sqrt() * (e_upper / e_lower).powf(1.0 / 6.0)
 }
 
 /// How eq. 3.1's wavelength scales with the upper layer's (E, h): E^1/6 h^1/2.
-pub const TWO_LAYER_EXPONENTS: (f64, f64) = (1.0 / 6.0, 0.5);
+pub(crate) const TWO_LAYER_EXPONENTS: (f64, f64) = (1.0 / 6.0, 0.5);
 
 /// Stiff film on a deep substrate (Chen & Hutchinson 2004): lambda = 2 pi h (Ebar_f / (3 Ebar_s))^(1/3),
 /// with plane-strain moduli Ebar = E / (1 - nu^2).
-pub fn wavelength_film(h: f64, ebar_film: f64, ebar_substrate: f64) -> f64 {
+pub(crate) fn wavelength_film(h: f64, ebar_film: f64, ebar_substrate: f64) -> f64 {
     2.0 * std::f64::consts::PI * h * (ebar_film / (3.0 * ebar_substrate)).cbrt()
 }
 
 /// How the film wavelength scales with the film's (E, h): E^1/3 h.
-pub const FILM_EXPONENTS: (f64, f64) = (1.0 / 3.0, 1.0);
+pub(crate) const FILM_EXPONENTS: (f64, f64) = (1.0 / 3.0, 1.0);
 
 /// Greedy farthest-point clustering (LK14 4.1) on a mesh of material space: distances are
 /// Dijkstra paths over `edges` with cost |e| / mean(lambda at its ends), i.e. in wavelengths.
@@ -48,13 +48,13 @@ pub const FILM_EXPONENTS: (f64, f64) = (1.0 / 3.0, 1.0);
 /// 2/pi away (measured: letting coverage win packs centres half a wavelength apart along the
 /// boundary and makes the wrinkle wavelength depend on the patch width). Returns the centres'
 /// vertex indices in the order chosen.
-pub fn cluster_centres(points: &[DVec2], edges: &[[u32; 2]], wavelength: &[f64], seed: u64) -> Vec<u32> {
+pub(crate) fn cluster_centres(points: &[DVec2], edges: &[[u32; 2]], wavelength: &[f64], seed: u64) -> Vec<u32> {
     cluster_by_length(edges, wavelength, seed, |a, b| (points[a] - points[b]).length())
 }
 
 /// `cluster_centres` with edge lengths from `length(a, b)` (material space, or a rest surface:
 /// `geodesic`), one vertex per entry of `wavelength`.
-pub fn cluster_by_length(
+pub(crate) fn cluster_by_length(
     edges: &[[u32; 2]],
     wavelength: &[f64],
     seed: u64,
@@ -278,7 +278,7 @@ pub struct KernelShape {
 
 /// The kernels of a coupling: clusters a fine mesh of material space (`points`, `faces`) whose
 /// vertices carry the critical wavelength, one kernel per centre (LK14 4.1).
-pub fn build_kernels(points: &[DVec2], faces: &[[u32; 3]], wavelength: &[f64], seed: u64) -> Vec<KernelShape> {
+pub(crate) fn build_kernels(points: &[DVec2], faces: &[[u32; 3]], wavelength: &[f64], seed: u64) -> Vec<KernelShape> {
     let edges = crate::mesh::edges(faces);
     let plain: Vec<[u32; 2]> = edges.iter().map(|e| e.v).collect();
     let boundary: Vec<u32> = edges.iter().filter(|e| !e.is_interior()).flat_map(|e| e.v).collect();

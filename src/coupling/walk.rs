@@ -7,7 +7,7 @@
 
 use glam::{DVec2, DVec3};
 
-pub const NO_FACE: u32 = u32::MAX;
+pub(crate) const NO_FACE: u32 = u32::MAX;
 
 /// A point on a body surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -280,7 +280,7 @@ fn closest_canonical(c: DVec2, frame: &CanonicalFrame) -> DVec2 {
 }
 
 /// KCK18: "a simple clamp suffices" to keep a point inside the canonical triangle.
-pub fn clamp_canonical(c: DVec2) -> DVec2 {
+pub(crate) fn clamp_canonical(c: DVec2) -> DVec2 {
     let c = c.max(DVec2::ZERO);
     let sum = c.x + c.y;
     if sum > 1.0 {

@@ -17,7 +17,7 @@ pub fn tube(radius: f64, length: f64, around: u32, along: u32) -> SurfaceMesh {
 
 /// A tube (`arc` = 2 pi, closed) or an open part of one `arc` radians wide, centred on +z, its
 /// material coordinates (x, radius x angle) continuous over it.
-pub fn tube_arc(radius: f64, length: f64, around: u32, along: u32, arc: f64) -> SurfaceMesh {
+pub(crate) fn tube_arc(radius: f64, length: f64, around: u32, along: u32, arc: f64) -> SurfaceMesh {
     let closed = arc >= TAU;
     let columns = if closed { around } else { around + 1 };
     let start = if closed { 0.0 } else { -0.5 * arc };

@@ -102,7 +102,7 @@ pub struct Coarsening {
 
 impl Coarsening {
     /// The grid of a vertex plane at height z, for the finest grid `cells`.
-    pub fn cells_at(&self, cells: (u32, u32), z: f64) -> (u32, u32) {
+    pub(crate) fn cells_at(&self, cells: (u32, u32), z: f64) -> (u32, u32) {
         let level = ((self.from - z) / self.every + 1e-6).floor().max(0.0) as u32;
         (0..level).fold(cells, |c, _| halved(c))
     }

@@ -20,13 +20,13 @@ pub struct HandShape {
 
 /// The arm: round (radius 12) up to x = -45, flattening to a palm 44 wide and 16 thick from
 /// x = -30 on, from x = -90 to 0.
-pub const ARM: (f64, f64) = (-90.0, 0.0);
+pub(crate) const ARM: (f64, f64) = (-90.0, 0.0);
 /// The fingers: radius 7, from x = -5 (inside the palm) to 75, at y = -10 and +10.
-pub const FINGER_RADIUS: f64 = 7.0;
-pub const FINGER: (f64, f64) = (-5.0, 75.0);
-pub const FINGER_Y: [f64; 2] = [-10.0, 10.0];
+pub(crate) const FINGER_RADIUS: f64 = 7.0;
+pub(crate) const FINGER: (f64, f64) = (-5.0, 75.0);
+pub(crate) const FINGER_Y: [f64; 2] = [-10.0, 10.0];
 /// The gap between UV islands (in v).
-pub const ISLAND_GAP: f64 = 4.0;
+pub(crate) const ISLAND_GAP: f64 = 4.0;
 
 /// The arm's elliptic section (half-width in y, half-height in z) at x.
 fn arm_section(x: f64) -> (f64, f64) {

@@ -32,7 +32,7 @@ impl Imperfection {
         Self { amplitude, cell, waves: Vec::new(), perlin: noise::Perlin::new((seed ^ (seed >> 32)) as u32) }
     }
 
-    pub fn with_waves(mut self, waves: Vec<Wave>) -> Self {
+    pub(crate) fn with_waves(mut self, waves: Vec<Wave>) -> Self {
         self.waves = waves;
         self
     }

@@ -2,7 +2,7 @@
 
 pub mod bodies;
 pub mod bounds;
-pub mod generate;
+pub(crate) mod generate;
 pub mod hand;
 pub mod imperfection;
 pub mod locate;
@@ -14,7 +14,7 @@ pub mod shading;
 pub mod subdivision;
 pub mod topology;
 pub mod usd;
-pub mod uv_islands;
+pub(crate) mod uv_islands;
 pub mod wrinkle_map;
 
 /// Seeded randomness for the mesh modules' tests (rand_pcg behind the few draws they use).

@@ -43,7 +43,7 @@ pub struct FaceGroups {
 }
 
 /// `load`, and which `o` / `g` group each face belongs to.
-pub fn load_groups(path: &Path, to_metres: f64) -> Result<(SurfaceMesh, FaceGroups), ObjError> {
+pub(crate) fn load_groups(path: &Path, to_metres: f64) -> Result<(SurfaceMesh, FaceGroups), ObjError> {
     scan(path)?;
     let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
     let (models, _) = tobj::load_obj(path, &opts)?;
@@ -79,7 +79,7 @@ pub fn load_groups(path: &Path, to_metres: f64) -> Result<(SurfaceMesh, FaceGrou
 }
 
 /// Whether the file states texture coordinates (`vt` lines).
-pub fn has_texture_coordinates(path: &Path) -> std::io::Result<bool> {
+pub(crate) fn has_texture_coordinates(path: &Path) -> std::io::Result<bool> {
     Ok(std::fs::read_to_string(path)?.lines().any(|l| l.split_whitespace().next() == Some("vt")))
 }
 

@@ -41,7 +41,7 @@ pub fn select(rest: &[DVec3], region: &Region) -> Vec<u32> {
 
 /// The faces `keep` selects, over the vertices they use (in their old order): a region of a
 /// surface as a mesh of its own.
-pub fn faces_within(m: &SurfaceMesh, keep: &[bool]) -> SurfaceMesh {
+pub(crate) fn faces_within(m: &SurfaceMesh, keep: &[bool]) -> SurfaceMesh {
     let faces: Vec<[u32; 3]> = m.faces.iter().zip(keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
     let mut new_index = vec![u32::MAX; m.rest.len()];
     faces.iter().flatten().for_each(|&v| new_index[v as usize] = 0);
@@ -58,7 +58,7 @@ pub fn faces_within(m: &SurfaceMesh, keep: &[bool]) -> SurfaceMesh {
 }
 
 /// Vertices that differ only along `axis` form a group; each is tied to the group's first.
-pub fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
+pub(crate) fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
     let tol = 1e-9 * super::bounds::diagonal(rest).max(1e-300);
     let (a, b) = match axis {
         0 => (1, 2),
@@ -81,7 +81,7 @@ pub fn plane_strain_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
 
 /// Pairs each vertex on the max side along `axis` with the min-side vertex at the same other
 /// coordinates.
-pub fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
+pub(crate) fn periodic_ties(rest: &[DVec3], axis: usize) -> Vec<(u32, u32)> {
     let (lo, hi) = bounds(rest);
     let tol = 1e-9 * (hi - lo).length().max(1e-300);
     let key = |p: &DVec3| {
@@ -108,7 +108,7 @@ pub struct SeamHinge {
 }
 
 /// Hinges joining a shell's boundary edges on the max side to the matching ones on the min side.
-pub fn periodic_seams(m: &SurfaceMesh, axis: usize) -> Vec<SeamHinge> {
+pub(crate) fn periodic_seams(m: &SurfaceMesh, axis: usize) -> Vec<SeamHinge> {
     let (lo, hi) = bounds(&m.rest);
     let tol = 1e-9 * (hi - lo).length().max(1e-300);
     let key = |v: u32| {
@@ -140,7 +140,7 @@ pub fn periodic_seams(m: &SurfaceMesh, axis: usize) -> Vec<SeamHinge> {
 
 /// For every point of `from`, the topmost point of `to` at the same (x, y) (several points of a
 /// slab share one), matched to 1e-9 of `from`'s bounding-box diagonal.
-pub fn match_xy(from: &[DVec3], to: &[DVec3]) -> Vec<Option<u32>> {
+pub(crate) fn match_xy(from: &[DVec3], to: &[DVec3]) -> Vec<Option<u32>> {
     let tol = 1e-9 * super::bounds::diagonal(from).max(1e-300);
     let key = |p: DVec3| ((p.x / tol).round() as i64, (p.y / tol).round() as i64);
     let mut lookup: HashMap<(i64, i64), u32> = HashMap::new();
@@ -154,7 +154,7 @@ pub fn match_xy(from: &[DVec3], to: &[DVec3]) -> Vec<Option<u32>> {
 }
 
 /// The bottom (lowest z) faces of a tetrahedral mesh, and which vertices lie on the bottom.
-pub fn bottom_faces(rest: &[DVec3], tets: &[[u32; 4]]) -> (Vec<[u32; 3]>, Vec<bool>) {
+pub(crate) fn bottom_faces(rest: &[DVec3], tets: &[[u32; 4]]) -> (Vec<[u32; 3]>, Vec<bool>) {
     let zmin = rest.iter().fold(f64::INFINITY, |z, p| z.min(p.z));
     let tol = 1e-9 * super::bounds::diagonal(rest).max(1e-300);
     let bottom: Vec<bool> = rest.iter().map(|p| p.z <= zmin + tol).collect();
@@ -177,7 +177,7 @@ pub fn vertex_areas(rest: &[DVec3], faces: &[[u32; 3]]) -> Vec<f64> {
 
 impl SurfaceMesh {
     /// Mean edge length in material space.
-    pub fn mean_material_edge(&self) -> f64 {
+    pub(crate) fn mean_material_edge(&self) -> f64 {
         let total: f64 = self
             .faces
             .iter()

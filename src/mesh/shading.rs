@@ -4,7 +4,7 @@
 use glam::DVec3;
 
 /// Area of triangle `t` of the points `p`.
-pub fn triangle_area(p: &[DVec3], t: &[u32; 3]) -> f64 {
+pub(crate) fn triangle_area(p: &[DVec3], t: &[u32; 3]) -> f64 {
     let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
     0.5 * (b - a).cross(c - a).length()
 }
@@ -45,7 +45,7 @@ pub fn normals_and_strain(pos: &[DVec3], tris: &[[u32; 3]], rest_area: &[f64]) -
 /// The stress-free area of a rest triangle of area `rest_area` whose membrane prestrain is `f0`
 /// (H15 eq. 4.8, F = dx/dX F0): the elastic area strain is area det(F0) / rest_area - 1, so a
 /// prestretched layer at its placed shape draws stretched, and relaxed, unstrained.
-pub fn stress_free_area(rest_area: f64, f0: glam::DMat2) -> f64 {
+pub(crate) fn stress_free_area(rest_area: f64, f0: glam::DMat2) -> f64 {
     rest_area / f0.determinant()
 }
 
@@ -124,14 +124,8 @@ pub fn stress_free_areas(rest: &[DVec3], tris: &[[u32; 3]], prestrain: &[Option<
 /// The stress-free area of a boundary face (area `rest_area`, unit normal `normal`) of a tet
 /// whose prestrain is `f0` (F = dx/dX F0): the face mapped by F0^-1 has the area
 /// |F0^T n| rest_area / det(F0) (Nanson's formula).
-pub fn stress_free_face_area(rest_area: f64, normal: DVec3, f0: glam::DMat3) -> f64 {
+pub(crate) fn stress_free_face_area(rest_area: f64, normal: DVec3, f0: glam::DMat3) -> f64 {
     rest_area * (f0.transpose() * normal).length() / f0.determinant()
-}
-
-/// RGBA colour of an area strain: white at rest, blue for stretch, red for compression,
-/// saturated at 10 %.
-pub fn strain_colour(strain: f64) -> [u8; 4] {
-    diverging_colour(strain, STRAIN_SATURATION)
 }
 
 /// RGBA colour of a signed value: white at 0, blue for positive, red for negative, saturated
@@ -231,9 +225,9 @@ mod tests {
 
     #[test]
     fn stretch_is_blue_compression_red_rest_white() {
-        assert_eq!(strain_colour(0.0), [255, 255, 255, 255]);
-        assert_eq!(strain_colour(0.2), [0, 0, 255, 255]);
-        assert_eq!(strain_colour(-0.2), [255, 0, 0, 255]);
+        assert_eq!(diverging_colour(0.0, STRAIN_SATURATION), [255, 255, 255, 255]);
+        assert_eq!(diverging_colour(0.2, STRAIN_SATURATION), [0, 0, 255, 255]);
+        assert_eq!(diverging_colour(-0.2, STRAIN_SATURATION), [255, 0, 0, 255]);
     }
 
     /// A grid over a height function z = f(x, y) on [-1, 1]^2, n x n cells.

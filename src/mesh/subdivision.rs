@@ -38,7 +38,7 @@
 use glam::DVec3;
 
 /// The most levels [`refine`] and [`levels_for`] accept: 4^8 = 65536 refined faces per coarse face.
-pub const MAX_LEVELS: u32 = 8;
+pub(crate) const MAX_LEVELS: u32 = 8;
 
 /// A problem with the input of [`refine`] or [`levels_for`], naming the element that shows it.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -125,7 +125,7 @@ pub fn refine(rest: &[DVec3], faces: &[[u32; 3]], region: &[u32], levels: u32) -
 /// The smallest number of levels `k` for which the longest edge of the region's faces, halved `k`
 /// times, is at most `target_edge` (lengths measured on `rest`). Errors when that takes more than
 /// [`MAX_LEVELS`].
-pub fn levels_for(
+pub(crate) fn levels_for(
     rest: &[DVec3],
     faces: &[[u32; 3]],
     region: &[u32],

@@ -32,16 +32,16 @@ use glam::{DVec2, DVec3};
 
 /// Two UVs agree when each component is equal or differs by at most this fraction of the UV
 /// extent (the larger side of the bounding box of the UVs compared).
-pub const AGREE: f64 = 1e-12;
+pub(crate) const AGREE: f64 = 1e-12;
 
 /// A triangle is degenerate when twice its area is at most this fraction of its longest edge
 /// squared (a height below 1e-12 of its longest edge); an island or region has zero area when
 /// its area is at most this fraction of its bounding box's larger side squared.
-pub const DEGENERATE: f64 = 1e-12;
+pub(crate) const DEGENERATE: f64 = 1e-12;
 
 /// What is wrong with the input. Faces, islands and vertices are named by their index.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum UvError {
+pub(crate) enum UvError {
     #[error("{corners} per-face corner UV triples for {faces} faces")]
     CornerCount { faces: usize, corners: usize },
     #[error("face {face} names vertex {vertex}, but there are {vertices} vertices")]
@@ -80,13 +80,11 @@ pub enum UvError {
     DegenerateRegion { face: u32 },
     #[error("the conformal chart's least squares system could not be solved: {0}")]
     Solve(String),
-    #[error("vertex {vertex} differs between region faces {} and {} (a UV seam crosses it)", faces[0], faces[1])]
-    SeamInRegion { vertex: u32, faces: [u32; 2] },
 }
 
 /// The UV islands of a mesh.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Islands {
+pub(crate) struct Islands {
     /// Per face, its island: islands are numbered in the order of their lowest face.
     pub of_face: Vec<u32>,
     pub count: usize,
@@ -97,7 +95,8 @@ pub struct Islands {
 
 impl Islands {
     /// The faces of `island`, in increasing order.
-    pub fn faces(&self, island: u32) -> Vec<u32> {
+    #[cfg(test)]
+    pub(crate) fn faces(&self, island: u32) -> Vec<u32> {
         (0..self.of_face.len() as u32).filter(|&f| self.of_face[f as usize] == island).collect()
     }
 }
@@ -135,7 +134,7 @@ pub struct IslandReport {
 
 /// How far material coordinates are from the rest metric over a face set.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Distortion {
+pub(crate) struct Distortion {
     pub faces: usize,
     /// Rest area (m^2) and material area (the absolute areas of the material triangles summed).
     pub area_3d: f64,
@@ -157,7 +156,7 @@ pub struct Distortion {
 
 /// A conformal chart of a face region: per welded vertex its coordinates (m).
 #[derive(Clone, Debug, PartialEq)]
-pub struct ConformalChart {
+pub(crate) struct ConformalChart {
     /// Per welded vertex (as many as rest positions), metres; NaN for vertices outside the region.
     pub coords: Vec<DVec2>,
     /// The region's vertices, increasing.
@@ -181,7 +180,7 @@ impl Index<usize> for ConformalChart {
 /// island, and islands are what that relation connects. Faces past the end of `corner_uv` are
 /// islands of their own; a face with a NaN UV joins nothing across that corner's edges
 /// ([`length_true`] rejects it).
-pub fn islands(faces: &[[u32; 3]], corner_uv: &[[DVec2; 3]]) -> Islands {
+pub(crate) fn islands(faces: &[[u32; 3]], corner_uv: &[[DVec2; 3]]) -> Islands {
     let n = faces.len();
     let tol = AGREE * extent(corner_uv.iter().flatten());
     // (low vertex, high vertex, face, corner at low, corner at high)
@@ -238,7 +237,7 @@ pub fn islands(faces: &[[u32; 3]], corner_uv: &[[DVec2; 3]]) -> Islands {
 /// Per island, its report. Errors: inconsistent lengths or labels, a vertex out of range, a
 /// non-finite position or UV (naming the first such face), an island of zero UV or rest area
 /// (naming it and its lowest face).
-pub fn length_true(
+pub(crate) fn length_true(
     rest: &[DVec3],
     faces: &[[u32; 3]],
     corner_uv: &[[DVec2; 3]],
@@ -369,7 +368,7 @@ pub fn length_true(
 
 /// The distortion of per-corner material coordinates `corners` (one triple per face of `faces`)
 /// against the rest metric over the faces `region` (duplicates count once).
-pub fn distortion(
+pub(crate) fn distortion(
     rest: &[DVec3],
     faces: &[[u32; 3]],
     corners: &[[DVec2; 3]],
@@ -390,7 +389,12 @@ pub fn distortion(
 /// the region's material area over its rest area; (NaN, NaN) on bad input (every comparison with
 /// a threshold then fails: a caller choosing between UVs and a chart picks the chart, whose own
 /// checks name the problem).
-pub fn region_distortion(rest: &[DVec3], faces: &[[u32; 3]], corners: &[[DVec2; 3]], region: &[u32]) -> (f64, f64) {
+pub(crate) fn region_distortion(
+    rest: &[DVec3],
+    faces: &[[u32; 3]],
+    corners: &[[DVec2; 3]],
+    region: &[u32],
+) -> (f64, f64) {
     distortion(rest, faces, corners, region).map_or((f64::NAN, f64::NAN), |d| (d.stretch_mean, d.area_ratio))
 }
 
@@ -401,7 +405,7 @@ pub fn region_distortion(rest: &[DVec3], faces: &[[u32; 3]], corners: &[[DVec2; 
 /// on +x); the free coordinates solve the normal equations by a sparse Cholesky (faer, AMD
 /// ordering, sequential). The chart is then scaled about the origin so its area equals the
 /// region's rest area, and winds as the faces. Rest-degenerate faces carry no conformal energy.
-pub fn conformal_chart(rest: &[DVec3], faces: &[[u32; 3]], region: &[u32]) -> Result<ConformalChart, UvError> {
+pub(crate) fn conformal_chart(rest: &[DVec3], faces: &[[u32; 3]], region: &[u32]) -> Result<ConformalChart, UvError> {
     let region = checked_region(faces, region)?;
     check_vertices(rest, faces, region.iter().copied())?;
     if let Some(&f) = region.iter().find(|&&f| {
@@ -572,38 +576,6 @@ pub fn conformal_chart(rest: &[DVec3], faces: &[[u32; 3]], region: &[u32]) -> Re
         faces.iter().map(|t| t.map(|v| coords.get(v as usize).copied().unwrap_or(DVec2::NAN))).collect();
     let report = measure(rest, faces, &corners, &region);
     Ok(ConformalChart { coords, pins: [vertices[p0], vertices[p1]], vertices, report })
-}
-
-/// Per-corner values (one triple per face) collapsed to per-vertex over the faces `region`: every
-/// corner of a vertex on those faces must agree (bit-identical, or within [`AGREE`] of the extent
-/// of the region's values; the vertex takes its corner on the lowest face). Returns one value per
-/// vertex index up to the highest any face names, NaN for vertices on no region face. A vertex
-/// whose corners disagree is on a seam the region straddles: [`UvError::SeamInRegion`] names it
-/// and two of its faces (use a [`conformal_chart`] of the region instead).
-pub fn per_vertex(faces: &[[u32; 3]], corner_values: &[[DVec2; 3]], region: &[u32]) -> Result<Vec<DVec2>, UvError> {
-    if corner_values.len() != faces.len() {
-        return Err(UvError::CornerCount { faces: faces.len(), corners: corner_values.len() });
-    }
-    let region = checked_region(faces, region)?;
-    if let Some(&f) = region.iter().find(|&&f| !corner_values[f as usize].iter().all(|p| p.is_finite())) {
-        return Err(UvError::NonFiniteUv { face: f });
-    }
-    let tol = AGREE * extent(region.iter().flat_map(|&f| &corner_values[f as usize]));
-    let len = faces.iter().flatten().max().map_or(0, |&v| v as usize + 1);
-    let mut out = vec![DVec2::NAN; len];
-    let mut from = vec![u32::MAX; len];
-    for &f in &region {
-        for (k, &v) in faces[f as usize].iter().enumerate() {
-            let c = corner_values[f as usize][k];
-            let v_ = v as usize;
-            if from[v_] == u32::MAX {
-                (out[v_], from[v_]) = (c, f);
-            } else if !agree(out[v_], c, tol) {
-                return Err(UvError::SeamInRegion { vertex: v, faces: [from[v_], f] });
-            }
-        }
-    }
-    Ok(out)
 }
 
 // ------------------------------------------------------------------------------- helpers

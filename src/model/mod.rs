@@ -342,7 +342,7 @@ pub struct LayerPrestrain {
 
 impl LayerPrestrain {
     /// The principal stretches at a material point.
-    pub fn stretch_at(&self, uv: DVec2) -> DVec3 {
+    pub(crate) fn stretch_at(&self, uv: DVec2) -> DVec3 {
         self.map
             .as_ref()
             .map_or(self.stretch, |m| crate::physics::prestrain::weighted_stretch(self.stretch, m.sample(uv)))

@@ -106,7 +106,7 @@ impl Motion {
 
     /// The positions of every vertex of its layer at `frame`, for motions that pose a layer as
     /// a whole (a rig); None for the per-point maps of `apply`.
-    pub fn layer_pose(&self, frame: f64) -> Option<Vec<DVec3>> {
+    pub(crate) fn layer_pose(&self, frame: f64) -> Option<Vec<DVec3>> {
         match &self.kind {
             MotionKind::Rig(r) => Some(r.positions(frame)),
             _ => None,

@@ -69,7 +69,7 @@ impl ShellRest<'_> {
 }
 
 /// Lumped masses of a solid's vertices: density x volume / 4 per tetrahedron corner.
-pub fn volume_masses(density: f64, rest: &[DVec3], tets: &[[u32; 4]]) -> Vec<f64> {
+pub(crate) fn volume_masses(density: f64, rest: &[DVec3], tets: &[[u32; 4]]) -> Vec<f64> {
     let mut mass = vec![0.0; rest.len()];
     for t in tets {
         let p = |i: usize| rest[t[i] as usize];

@@ -48,7 +48,7 @@ impl PartialEq for RigMotion {
 
 /// The rotation that takes glTF's +Y-up frame to the engine's +Z-up one: (x, y, z) -> (x, -z, y),
 /// as Blender imports glTF.
-pub fn y_up_to_z_up() -> DQuat {
+pub(crate) fn y_up_to_z_up() -> DQuat {
     DQuat::from_rotation_x(std::f64::consts::FRAC_PI_2)
 }
 
@@ -94,7 +94,7 @@ impl RigMotion {
     }
 
     /// The frames at which its keyframes (and the clip's keys) lie.
-    pub fn key_frames(&self) -> Vec<u32> {
+    pub(crate) fn key_frames(&self) -> Vec<u32> {
         let mut keys: Vec<u32> = self.joints.iter().flat_map(|j| j.2 .0.iter().map(|k| k.0)).collect();
         keys.extend(self.morphs.iter().flat_map(|m| m.1 .0.iter().map(|k| k.0)));
         if let Some((clip, start, speed)) = self.clip {

@@ -38,11 +38,11 @@ pub enum VolumeElement {
 /// error per tet against per cell: nu 0.45 +0.7 / -1.2 %, 0.46 +1.7 / -1.4 %, 0.47 +2.5 / -1.6 %,
 /// 0.48 +4.7 / -1.7 %, 0.49 +8.4 / -1.8 %, 0.495 +19 / -1.8 %; the cell costs about 1.2-1.3x
 /// per increment (`cargo bench -p skinsim-cli --bench volume_element`).
-pub const CELL_FROM_POISSON: f64 = 0.47;
+pub(crate) const CELL_FROM_POISSON: f64 = 0.47;
 
 impl VolumeElement {
     /// The default for a volume layer of Poisson's ratio `poisson`.
-    pub fn default_for(poisson: f64) -> Self {
+    pub(crate) fn default_for(poisson: f64) -> Self {
         if poisson >= CELL_FROM_POISSON {
             VolumeElement::Cell
         } else {
@@ -52,8 +52,8 @@ impl VolumeElement {
 }
 
 /// Vertices and tetrahedra of a cell: a hexahedron of the slab mesher (two prisms of three).
-pub const CELL_VERTS: usize = 8;
-pub const CELL_TETS: usize = 6;
+pub(crate) const CELL_VERTS: usize = 8;
+pub(crate) const CELL_TETS: usize = 6;
 const N: usize = 3 * CELL_VERTS;
 
 /// The volume measure g(J) of a model's lambda term.
@@ -103,7 +103,7 @@ fn det_ds(x: &[DVec3; CELL_VERTS], t: [u8; 4]) -> f64 {
 }
 
 /// The cell's volume ratio J_c.
-pub fn volume_ratio(rest: &CellRest, x: &[DVec3; CELL_VERTS]) -> f64 {
+pub(crate) fn volume_ratio(rest: &CellRest, x: &[DVec3; CELL_VERTS]) -> f64 {
     (0..CELL_TETS).map(|e| rest.weight[e] * det_ds(x, rest.tets[e])).sum::<f64>() / rest.volume
 }
 

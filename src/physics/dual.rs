@@ -5,7 +5,7 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// The arithmetic the hinge gradient needs, for f64 and for dual numbers.
-pub trait Real:
+pub(crate) trait Real:
     Copy
     + Add<Output = Self>
     + Sub<Output = Self>
@@ -21,15 +21,15 @@ pub trait Real:
 /// a - b, a . b and a x b on 3-arrays of any number type with + - x: f64, `Dual`, and
 /// num-dual's types (the hinge's angle, its closed-form gradient and the Gaussian term's).
 #[inline]
-pub fn sub3<T: Copy + Sub<Output = T>>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+pub(crate) fn sub3<T: Copy + Sub<Output = T>>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 #[inline]
-pub fn dot3<T: Copy + Add<Output = T> + Mul<Output = T>>(a: [T; 3], b: [T; 3]) -> T {
+pub(crate) fn dot3<T: Copy + Add<Output = T> + Mul<Output = T>>(a: [T; 3], b: [T; 3]) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 #[inline]
-pub fn cross3<T: Copy + Sub<Output = T> + Mul<Output = T>>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+pub(crate) fn cross3<T: Copy + Sub<Output = T> + Mul<Output = T>>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
@@ -54,7 +54,7 @@ pub struct Dual<const N: usize> {
 impl<const N: usize> Dual<N> {
     /// The i-th independent variable with value `re`.
     #[inline]
-    pub fn variable(re: f64, i: usize) -> Self {
+    pub(crate) fn variable(re: f64, i: usize) -> Self {
         let mut eps = [0.0; N];
         eps[i] = 1.0;
         Dual { re, eps }

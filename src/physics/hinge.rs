@@ -26,7 +26,7 @@ pub enum HingeModel {
 
 impl HingeModel {
     /// phi, phi', phi'' at theta.
-    pub fn phi(self, t: f64) -> (f64, f64, f64) {
+    pub(crate) fn phi(self, t: f64) -> (f64, f64, f64) {
         match self {
             HingeModel::Linear => (t, 1.0, 0.0),
             HingeModel::Sin => {
@@ -88,7 +88,7 @@ pub fn dihedral<D: DualNum<Primitive = f64> + Copy>(x: &[[D; 3]; 4]) -> D {
 /// Marino, Fedkiw 2003): the opposite vertices move along their face normals over the heights,
 /// the edge vertices by the projections of the opposite vertices on the edge. Generic so that
 /// first-order AD of it gives the exact Hessian.
-pub fn dihedral_gradient<D: Real>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
+pub(crate) fn dihedral_gradient<D: Real>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
     let (sub, dot, cross) = (sub3::<D>, dot3::<D>, cross3::<D>);
     let e = sub(x[1], x[0]);
     let l = dot(e, e).sqrt();
@@ -111,7 +111,7 @@ pub fn dihedral_gradient<D: Real>(x: &[[D; 3]; 4]) -> [[D; 3]; 4] {
 }
 
 /// Dihedral angle in plain f64.
-pub fn dihedral_f64(x: &[DVec3; 4]) -> f64 {
+pub(crate) fn dihedral_f64(x: &[DVec3; 4]) -> f64 {
     dihedral(&x.map(|v| v.to_array()))
 }
 

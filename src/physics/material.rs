@@ -61,7 +61,7 @@ impl ConstitutiveModel {
 
 /// Energy density of a membrane. `f` is the 3x2 deformation gradient, column-major:
 /// f[0..3] is the first column, f[3..6] the second. `lame` are the plane-stress parameters.
-pub fn membrane_psi<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, lame: Lame, f: &[D; 6]) -> D {
+pub(crate) fn membrane_psi<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, lame: Lame, f: &[D; 6]) -> D {
     let c11 = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
     let c22 = f[3] * f[3] + f[4] * f[4] + f[5] * f[5];
     let c12 = f[0] * f[3] + f[1] * f[4] + f[2] * f[5];
@@ -69,7 +69,11 @@ pub fn membrane_psi<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel
 }
 
 /// The same energy density as a function of C = F^T F: [C11, C22, C12].
-pub fn membrane_psi_of_c<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, lame: Lame, c: [D; 3]) -> D {
+pub(crate) fn membrane_psi_of_c<D: DualNum<Primitive = f64> + Copy>(
+    model: ConstitutiveModel,
+    lame: Lame,
+    c: [D; 3],
+) -> D {
     let [c11, c22, c12] = c;
     let det_c = c11 * c22 - c12 * c12;
     let tr_c = c11 + c22;
@@ -110,7 +114,7 @@ pub fn membrane_psi_of_c<D: DualNum<Primitive = f64> + Copy>(model: Constitutive
 
 /// Energy density of a solid. `f` is the 3x3 deformation gradient, column-major.
 /// The corotational model is handled in closed form by `tet.rs` (it needs an SVD).
-pub fn solid_psi<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, lame: Lame, f: &[D; 9]) -> D {
+pub(crate) fn solid_psi<D: DualNum<Primitive = f64> + Copy>(model: ConstitutiveModel, lame: Lame, f: &[D; 9]) -> D {
     let col = |j: usize| [f[3 * j], f[3 * j + 1], f[3 * j + 2]];
     let (a, b, c) = (col(0), col(1), col(2));
     let dot = |u: &[D; 3], v: &[D; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];

@@ -28,7 +28,7 @@ impl MembraneRest {
 }
 
 /// 2x2 rest edge matrix of a triangle in its own frame (H15 eq. 5.5-5.8: QR of the 3x2 edges).
-pub fn rest_edge_matrix(x: [DVec3; 3]) -> Option<DMat2> {
+pub(crate) fn rest_edge_matrix(x: [DVec3; 3]) -> Option<DMat2> {
     let e1 = x[1] - x[0];
     let e2 = x[2] - x[0];
     let l1 = e1.length();

@@ -15,7 +15,7 @@ pub mod membrane;
 pub mod prestrain;
 pub mod principal;
 pub mod psd;
-pub mod quadratic_bending;
+pub(crate) mod quadratic_bending;
 pub mod spring;
 pub mod tet;
 

@@ -13,7 +13,7 @@ use super::tet::TetRest;
 
 /// F0 of a membrane triangle in its own rest frame (that of `membrane::rest_edge_matrix`) from
 /// the stretch tensor diag(stretch) in world axes: F0_ij = a_i . S a_j, a = (t, s).
-pub fn membrane_f0(x: [DVec3; 3], stretch: DVec3) -> DMat2 {
+pub(crate) fn membrane_f0(x: [DVec3; 3], stretch: DVec3) -> DMat2 {
     let e1 = x[1] - x[0];
     let t = e1.normalize();
     let s = e1.cross(x[2] - x[0]).cross(t).normalize();
@@ -22,7 +22,7 @@ pub fn membrane_f0(x: [DVec3; 3], stretch: DVec3) -> DMat2 {
 }
 
 /// Stretch tensor of a map weight w: I + w (S - I).
-pub fn weighted_stretch(stretch: DVec3, w: f64) -> DVec3 {
+pub(crate) fn weighted_stretch(stretch: DVec3, w: f64) -> DVec3 {
     DVec3::ONE + w * (stretch - DVec3::ONE)
 }
 
@@ -82,7 +82,7 @@ pub fn hinge_capture(model: HingeModel, rest: &HingeRest, x: &[DVec3; 4], f: f64
 /// Maps a point of a flat sheet onto a cylinder of curvature kappa that curves along `axis`
 /// (0 = x, 1 = y) towards +z, touching the sheet at `centre`; arc length along the axis and the
 /// offset along z (the normal) are kept.
-pub fn wrap_on_cylinder(p: DVec3, centre: DVec3, kappa: f64, axis: usize) -> DVec3 {
+pub(crate) fn wrap_on_cylinder(p: DVec3, centre: DVec3, kappa: f64, axis: usize) -> DVec3 {
     if kappa == 0.0 {
         return p;
     }

@@ -15,7 +15,7 @@ use super::material::Lame;
 use super::psd::{Filter, CLAMP_FLOOR};
 
 /// Energy density, dPsi/dF and d2Psi/dF2 (vec = column-major 9), filtered.
-pub fn bazant_hencky(lame: Lame, f: &[f64; 9], filter: Filter) -> (f64, SVector<f64, 9>, SMatrix<f64, 9, 9>) {
+pub(crate) fn bazant_hencky(lame: Lame, f: &[f64; 9], filter: Filter) -> (f64, SVector<f64, 9>, SMatrix<f64, 9, 9>) {
     let fm = Matrix3::from_column_slice(f);
     let svd = fm.svd(true, true);
     let (u, v) = (svd.u.unwrap(), svd.v_t.unwrap().transpose());

@@ -27,7 +27,7 @@ pub enum Filter {
 }
 
 /// Relative floor for clamped eigenvalues (of the largest eigenvalue magnitude).
-pub const CLAMP_FLOOR: f64 = 1e-12;
+pub(crate) const CLAMP_FLOOR: f64 = 1e-12;
 
 /// Symmetric matrices that can be projected (the element sizes: 4, 6, 9, 12).
 pub trait Project {

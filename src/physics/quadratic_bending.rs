@@ -130,7 +130,7 @@ impl QuadraticBending {
 
     /// Elements from a layer's hinges, (x0, x1 the edge, x2, x3 the opposite vertices; rest
     /// weight k_b 3 |e|^2 / A): each edge's D read back from its hinge (`rigidity_of_hinge`).
-    pub fn from_hinges(
+    pub(crate) fn from_hinges(
         faces: &[[u32; 3]],
         rest: impl Fn(u32) -> DVec3,
         hinges: &[([u32; 4], f64)],
@@ -185,7 +185,7 @@ impl QuadraticBending {
 
     /// (L x)_v of element i.
     #[inline]
-    pub fn laplacian(&self, i: usize, x: &[DVec3]) -> DVec3 {
+    pub(crate) fn laplacian(&self, i: usize, x: &[DVec3]) -> DVec3 {
         let (vs, ws) = self.stencil(i);
         vs.iter().zip(ws).map(|(&v, &w)| w * x[v as usize]).sum()
     }
@@ -202,7 +202,7 @@ impl QuadraticBending {
     }
 
     /// Sum of D_v (J): the energy scale at unit curvature times area.
-    pub fn rigidity_sum(&self) -> f64 {
+    pub(crate) fn rigidity_sum(&self) -> f64 {
         self.k.iter().zip(&self.area).map(|(k, a)| k * a).sum()
     }
 }
@@ -224,7 +224,7 @@ fn mixed_areas(p: &[DVec3; 3], cot: &[f64; 3], area: f64) -> [f64; 3] {
 
 /// The rigidity D (N m) a hinge of weight k_b 3 |e|^2 / A with rest positions `x` stands for:
 /// k_b = D / 6 x scale (PHYSICS.md 1.2), so the hinge's property maps and scale carry over.
-pub fn rigidity_of_hinge(weight: f64, x: [DVec3; 4]) -> f64 {
+pub(crate) fn rigidity_of_hinge(weight: f64, x: [DVec3; 4]) -> f64 {
     let e2 = (x[1] - x[0]).length_squared();
     let a = 0.5 * ((x[1] - x[0]).cross(x[2] - x[0]).length() + (x[1] - x[0]).cross(x[3] - x[0]).length());
     6.0 * weight * a / (3.0 * e2)

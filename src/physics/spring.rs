@@ -19,7 +19,7 @@ pub fn gradient(k: f64, a: DVec3, b: DVec3) -> DVec3 {
 /// vertices (a vertex, or a face barycentre), to a body point `target` held fixed during a
 /// solve: energy 1/2 k |sum_i w_i x_i - target|^2, gradient k w_i r per vertex, Hessian
 /// k w_i w_j I per vertex pair. `N` = 3 NV.
-pub fn anchor_eval<const NV: usize, const N: usize>(
+pub(crate) fn anchor_eval<const NV: usize, const N: usize>(
     k: f64,
     w: &[f64; NV],
     x: &[DVec3; NV],

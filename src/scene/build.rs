@@ -13,7 +13,7 @@ use super::schema::*;
 
 /// The largest scene file read (bytes): a scene is text; anything longer is not one (and a
 /// device such as /dev/zero would be read until memory runs out).
-pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+pub(crate) const MAX_SCENE_BYTES: u64 = 16 << 20;
 
 /// Reads, validates and builds a scene file.
 pub fn load(path: &Path) -> Result<BuiltScene, SceneError> {
@@ -28,7 +28,7 @@ pub fn load(path: &Path) -> Result<BuiltScene, SceneError> {
 
 /// A text file of at most `limit` bytes; errors name what is wrong (a directory, too long, the
 /// line of the first byte that is not UTF-8).
-pub fn read_text(path: &Path, limit: u64) -> Result<String, String> {
+pub(crate) fn read_text(path: &Path, limit: u64) -> Result<String, String> {
     use std::io::Read;
     if path.is_dir() {
         return Err("it is a directory".into());

@@ -114,7 +114,7 @@ pub struct BodyAsset {
 }
 
 /// Per face, a value at each of its corners.
-pub type Corners = Vec<[DVec2; 3]>;
+pub(crate) type Corners = Vec<[DVec2; 3]>;
 
 /// A layer embedded in a surface of its patch (a body's layer 0 or an earlier kinematic layer):
 /// each vertex the stencil of that layer's vertices, moved `distance` along the normal.
@@ -127,7 +127,7 @@ pub struct BuiltEmbedding {
 
 impl LayerMesh {
     /// Material (2D) positions of the mesh's vertices, as spawned into `MaterialPos`.
-    pub fn material_positions(&self) -> Vec<DVec2> {
+    pub(crate) fn material_positions(&self) -> Vec<DVec2> {
         match self {
             LayerMesh::Surface(m) => m.uv.clone(),
             LayerMesh::Volume(m) => m.rest.iter().map(|p| p.truncate()).collect(),
@@ -177,7 +177,7 @@ impl BuiltDriver {
     }
 
     /// Whether it only moves its layers (what a shared body may take).
-    pub fn is_motion(&self) -> bool {
+    pub(crate) fn is_motion(&self) -> bool {
         matches!(
             self,
             BuiltDriver::Compress { .. }
@@ -191,7 +191,7 @@ impl BuiltDriver {
 }
 
 /// A blend-shape target: displacements of the layer's vertices (m) and weight keyframes.
-pub type BuiltTarget = (Vec<DVec3>, Vec<(u32, f64)>);
+pub(crate) type BuiltTarget = (Vec<DVec3>, Vec<(u32, f64)>);
 
 /// Drivers with layer names resolved to indices and values in SI units.
 #[derive(Clone, Debug)]

@@ -16,7 +16,7 @@ use crate::model::{Interpolation, Keyframes, LayerKind, RigMotion};
 /// A region whose faces stretch their island's UVs by more than this (the area-weighted mean
 /// ratio of principal stretches), or whose own area ratio differs from its island's by more than
 /// this factor, gets a conformal chart of its own as its material space.
-pub const CHART_STRETCH: f64 = 1.1;
+pub(crate) const CHART_STRETCH: f64 = 1.1;
 
 /// A refined layer's mesh, its embedding (kinematic layers) and each vertex's parent face and
 /// barycentric coordinates in the base.

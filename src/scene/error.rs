@@ -14,7 +14,7 @@ pub struct SceneError {
 }
 
 impl SceneError {
-    pub fn at_field(file: impl Into<PathBuf>, field: impl Into<String>, message: impl Into<String>) -> Self {
+    pub(crate) fn at_field(file: impl Into<PathBuf>, field: impl Into<String>, message: impl Into<String>) -> Self {
         let message = compact_numbers(&message.into());
         SceneError { file: file.into(), position: None, field: Some(field.into()), message }
     }

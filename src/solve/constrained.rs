@@ -19,9 +19,9 @@ use super::constraints::Constraints;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
-    correction, evaluate, line_search, step, FrameOutcome, FrameStart, ARMIJO, MAX_ESCAPES, ROUND_OFF,
+    correction, evaluate, line_search, step, FrameOutcome, FrameStart, Search, ARMIJO, MAX_ESCAPES, ROUND_OFF,
 };
-use super::kkt::KktSystem;
+use super::kkt::{KktPoint, KktSystem};
 use super::linear::symmetric_product_into;
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
@@ -33,7 +33,7 @@ use crate::physics::psd::Filter;
 use crate::physics::Projection;
 
 /// Largest constraint violation at convergence, relative to the patch size (PHYSICS.md 2).
-pub const CONSTRAINT_TOLERANCE: f64 = 1e-9;
+pub(crate) const CONSTRAINT_TOLERANCE: f64 = 1e-9;
 /// Under a held load, a full step is kept only when the energy changed as its quadratic model
 /// g.dx + dx.H.dx / 2 predicted, within this many times the predicted change. Measured on the
 /// fig. 6-4 pinch's held remeshes: one step rose 1.0e-5 J where its model fell 1.9e-7 J (54
@@ -110,7 +110,8 @@ pub(super) fn newton_kkt(
                 if filter != Filter::Exact {
                     assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut grad, &mut values);
                 }
-                if let Some(x) = leave_saddle(packed, pattern, kkt, &constraints, &values, &jac, rho, &mut out) {
+                let point = KktPoint { h: &values, jac: &jac, grad: &grad, c: &c };
+                if let Some(x) = leave_saddle(packed, pattern, kkt, &constraints, &point, rho, &mut out) {
                     packed.state.x = x;
                     out.escapes += 1;
                     out.converged = false;
@@ -125,8 +126,8 @@ pub(super) fn newton_kkt(
             break Ok(());
         }
         if settings.globalization == Globalization::TrustRegion && settings.mode != SolveMode::LinearizedEuler {
-            let (h, constraints) = (&values, &constraints);
-            let it = Iterate { h, jac: &jac, grad: &grad, c: &c, constraints, phi, residual, energy_scale };
+            let point = KktPoint { h: &values, jac: &jac, grad: &grad, c: &c };
+            let it = Iterate { point, constraints: &constraints, phi, residual, energy_scale };
             stable_step = false; // (its factorizations are not read here)
             match region.step(packed, pattern, kkt, &it, &objective, &mut next_lambda, &mut rho, &mut out) {
                 Ok(true) => {
@@ -147,7 +148,8 @@ pub(super) fn newton_kkt(
             }
         }
         let clock = std::time::Instant::now();
-        let solved = kkt.step(pattern, &values, &jac, &grad, &c, &mut dx, &mut next_lambda);
+        let at = KktPoint { h: &values, jac: &jac, grad: &grad, c: &c };
+        let solved = kkt.step(pattern, &at, &mut dx, &mut next_lambda);
         out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
         stable_step = solved.is_ok() && filter == Filter::Exact && kkt.stable_at_round_off();
         tracing::trace!(solved = solved.is_ok(), shift = kkt.shift, "KKT step");
@@ -175,7 +177,8 @@ pub(super) fn newton_kkt(
         let merit = |parts: &EnergyParts, x: &[DVec3]| objective(parts, x) + rho * constraints.violation_l1(x);
         let phi_merit = phi + rho * c_l1;
         let x0 = held.then(|| packed.state.x.clone());
-        if second_order_correction(packed, pattern, kkt, &constraints, &dx, phi_merit, merit_slope, &merit) {
+        let target = phi_merit + ARMIJO * merit_slope;
+        if second_order_correction(packed, pattern, kkt, &constraints, &dx, target, &merit) {
             out.iterations += 1;
             // Under a held load the state starts near the load's equilibrium; a full step that
             // the l1 merit accepts for meeting the kernels (a remesh resamples their sums) can
@@ -197,18 +200,9 @@ pub(super) fn newton_kkt(
             std::mem::swap(&mut lambda, &mut next_lambda);
             continue;
         }
-        let accepted = line_search(
-            packed,
-            pattern,
-            &dx,
-            merit_slope,
-            phi_merit,
-            residual,
-            energy_scale,
-            settings.tolerance,
-            &merit,
-            &mut out,
-        );
+        let tolerance = settings.tolerance;
+        let search = Search { dx: &dx, slope: merit_slope, phi: phi_merit, residual, energy_scale, tolerance };
+        let accepted = line_search(packed, pattern, search, &merit, &mut out);
         if !accepted {
             // A rejected step at the round-off floor still has to satisfy the constraints.
             out.converged &= violation <= CONSTRAINT_TOLERANCE;
@@ -325,20 +319,18 @@ fn as_modelled(change: f64, model: f64, noise: f64) -> bool {
 /// most negative curvature of H on the null space of J when there is one (a constrained
 /// saddle: the compressed flat sheet past its buckling load is one), None at a stable
 /// equilibrium. Timed as the stability test.
-#[allow(clippy::too_many_arguments)]
 fn leave_saddle(
     packed: &PackedPatch,
     pattern: &Pattern,
     kkt: &mut KktSystem,
     constraints: &Constraints,
-    h: &[f64],
-    jac: &[f64],
+    at: &KktPoint,
     rho: f64,
     out: &mut FrameOutcome,
 ) -> Option<Vec<DVec3>> {
     let clock = std::time::Instant::now();
     let merit = |x: &[DVec3]| energy(&packed.elements, x).total() + rho * constraints.violation_l1(x);
-    let left = match stability::test_constrained(pattern, kkt, h, jac) {
+    let left = match stability::test_constrained(pattern, kkt, at.h, at.jac) {
         None | Some(Verdict::Stable) => None,
         Some(Verdict::Unstable { direction, .. }) => {
             let phi = merit(&packed.state.x);
@@ -353,26 +345,25 @@ fn leave_saddle(
 /// l1 merit function only because the constraints curve, and backtracking then crawls). When
 /// the full step fails the Armijo test, a correction back onto the constraints - one more solve
 /// with the same factorization - is added and the corrected full step tried; true when it is
-/// taken (the positions moved; also when the full step passes by itself), false with them unchanged.
-#[allow(clippy::too_many_arguments)]
+/// taken (the positions moved; also when the full step passes by itself), false with them
+/// unchanged. `target`: the merit Armijo accepts (phi + ARMIJO x slope of the merit).
 fn second_order_correction(
     packed: &mut PackedPatch,
     pattern: &Pattern,
     kkt: &mut KktSystem,
     constraints: &Constraints,
     dx: &[f64],
-    phi_merit: f64,
-    merit_slope: f64,
+    target: f64,
     merit: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
 ) -> bool {
     let x0 = packed.state.x.clone();
     step(&mut packed.state.x, &x0, &pattern.dof, dx, 1.0);
     let full = merit(&energy(&packed.elements, &packed.state.x), &packed.state.x);
-    let armijo = |v: f64| v.is_finite() && v <= phi_merit + ARMIJO * merit_slope;
+    let armijo = |v: f64| v.is_finite() && v <= target;
     if armijo(full) {
         return true;
     }
-    correction(packed, pattern, kkt, constraints, &x0, dx, phi_merit + ARMIJO * merit_slope, merit)
+    correction(packed, pattern, kkt, constraints, &x0, dx, target, merit)
 }
 
 #[cfg(test)]

@@ -134,7 +134,7 @@ impl Constraints {
     }
 
     /// |c(x)|_1, the l1 merit function's penalty term.
-    pub fn violation_l1(&self, x: &[DVec3]) -> f64 {
+    pub(crate) fn violation_l1(&self, x: &[DVec3]) -> f64 {
         self.values(x).iter().map(|c| c.x.abs() + c.y.abs() + c.z.abs()).sum()
     }
 

@@ -63,7 +63,7 @@ pub trait Element: Copy + Send + Sync {
 
 /// A registered kind's whole list, as the solver iterates over it (object safe: one `&dyn
 /// Term` per kind).
-pub trait Term: Sync {
+pub(crate) trait Term: Sync {
     fn part(&self) -> Part;
     /// Calls `each` with each element's vertex list (the pattern's adjacency and scatter maps).
     fn stencils(&self, each: &mut dyn FnMut(&[u32]));
@@ -88,7 +88,7 @@ pub trait Term: Sync {
 }
 
 /// A kind's list built from chosen elements of another, renumbered (the region solve).
-pub trait TermList: Term + Sized {
+pub(crate) trait TermList: Term + Sized {
     fn pick(&self, which: &[usize], to: &dyn Fn(u32) -> u32) -> Self;
 }
 

@@ -146,7 +146,7 @@ pub(super) struct Inertia<'a> {
 
 impl Inertia<'_> {
     /// Adds the inertia gradient and mass diagonal; returns the sum of the inertial forces.
-    pub fn add_to(&self, pattern: &Pattern, x: &[DVec3], grad: &mut [f64], values: &mut [f64]) -> f64 {
+    pub(crate) fn add_to(&self, pattern: &Pattern, x: &[DVec3], grad: &mut [f64], values: &mut [f64]) -> f64 {
         let mut total = 0.0;
         for (v, ((x, xh), m)) in x.iter().zip(self.x_hat).zip(self.mass).enumerate() {
             let f = (*x - *xh) * (m * self.inv_h2);
@@ -162,7 +162,7 @@ impl Inertia<'_> {
         total
     }
 
-    pub fn energy(&self, x: &[DVec3]) -> f64 {
+    pub(super) fn energy(&self, x: &[DVec3]) -> f64 {
         x.iter()
             .zip(self.x_hat)
             .zip(self.mass)
@@ -173,7 +173,6 @@ impl Inertia<'_> {
 
 /// Assembles the elastic energy, gradient and Hessian at the state (timed) and adds the
 /// inertia term's (implicit Euler) to them and to the force scale.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn evaluate(
     packed: &PackedPatch,
     pattern: &Pattern,
@@ -192,21 +191,28 @@ pub(super) fn evaluate(
     a
 }
 
+/// What a line search starts from: the step `dx` over free DOFs, the potential's slope along
+/// it, the potential `phi` and the relative residual at the iterate; the energy's round-off
+/// scale (`Elements::energy_scale`) and the solve's tolerance.
+pub(super) struct Search<'a> {
+    pub dx: &'a [f64],
+    pub slope: f64,
+    pub phi: f64,
+    pub residual: f64,
+    pub energy_scale: f64,
+    pub tolerance: f64,
+}
+
 /// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
 /// when no step is accepted (the state is restored; near round-off it counts as converged).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn line_search(
     packed: &mut PackedPatch,
     pattern: &Pattern,
-    dx: &[f64],
-    slope: f64,
-    phi: f64,
-    residual: f64,
-    energy_scale: f64,
-    tolerance: f64,
+    search: Search,
     total: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
     out: &mut FrameOutcome,
 ) -> bool {
+    let Search { dx, slope, phi, residual, energy_scale, tolerance } = search;
     let clock = std::time::Instant::now();
     let x0 = packed.state.x.clone();
     let mut alpha = 1.0;

@@ -87,6 +87,17 @@ enum Solver {
     Schur { chol: Box<CholeskySolver>, jt: Vec<Vec<(u32, f64)>>, y: Mat<f64>, llt: Option<Llt<f64>>, shifted: Vec<f64> },
 }
 
+/// What an SQP step is solved from at an iterate: the Hessian's values over its pattern, the
+/// kernels' Jacobian values (`Constraints::entries` order), the gradient over free DOFs and the
+/// constraint values.
+#[derive(Clone, Copy)]
+pub struct KktPoint<'a> {
+    pub h: &'a [f64],
+    pub jac: &'a [f64],
+    pub grad: &'a [f64],
+    pub c: &'a [f64],
+}
+
 impl KktSystem {
     pub fn build(h: &Pattern, c: &Constraints, method: KktMethod) -> KktSystem {
         let (n, m) = (h.n, c.rows());
@@ -174,7 +185,7 @@ impl KktSystem {
     /// many negative eigenvalues (J of full rank), so it is the unshifted LDL^T's negative pivot
     /// count less m. None when the LDL^T breaks down or has fewer than m negative pivots
     /// (round-off), and with Schur. Replaces the last factorization.
-    pub fn unstable_directions(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64]) -> Option<usize> {
+    pub(crate) fn unstable_directions(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64]) -> Option<usize> {
         let mean_diag = mean_abs_diagonal(h, h_values);
         self.load(h, h_values, j_values, mean_diag, 0.0);
         self.negative = None;
@@ -186,7 +197,7 @@ impl KktSystem {
     /// that gives it the inertia of a stable constrained problem, for solves on the null space
     /// of J (`solve_null`); the shift remembered for the Newton steps is left as it was. False
     /// past SHIFT_MAX.
-    pub fn factorize_definite(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64]) -> bool {
+    pub(crate) fn factorize_definite(&mut self, h: &Pattern, h_values: &[f64], j_values: &[f64]) -> bool {
         let mean_diag = mean_abs_diagonal(h, h_values);
         let mut shift = SHIFT_FIRST;
         while shift <= SHIFT_MAX {
@@ -202,20 +213,16 @@ impl KktSystem {
     /// One SQP step: (dx, lambda) from H, J, g and c, with the smallest shift mu (of the
     /// sequence 0 or last/3, then x10) that gives the KKT matrix the inertia of a stable
     /// constrained problem.
-    #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
         h: &Pattern,
-        h_values: &[f64],
-        j_values: &[f64],
-        g: &[f64],
-        c: &[f64],
+        at: &KktPoint,
         dx: &mut [f64],
         lambda: &mut [f64],
     ) -> Result<(), NotPositiveDefinite> {
         let mut shift = self.first_shift();
         loop {
-            match self.step_shifted(h, h_values, j_values, g, c, dx, lambda, shift) {
+            match self.step_shifted(h, at, dx, lambda, shift) {
                 Ok(()) => return Ok(()),
                 Err(_) => {
                     tracing::trace!(shift, negative = ?self.negative, m = self.m, curvature = self.curvature, "KKT try failed");
@@ -229,7 +236,7 @@ impl KktSystem {
     /// first needed, then a third of the last one but never below SHIFT_MIN: at a wrinkled state
     /// the unshifted KKT matrix is often singular to round-off, its unpivoted LDL^T then has
     /// fewer than m negative pivots and a failed try at zero costs a factorization per step.
-    pub fn first_shift(&self) -> f64 {
+    pub(crate) fn first_shift(&self) -> f64 {
         match self.last_shift {
             0.0 => 0.0,
             last => (last / SHIFT_DECREASE).max(SHIFT_MIN),
@@ -239,7 +246,7 @@ impl KktSystem {
     /// After a step its quadratic model did not predict (`constrained`, under a held load): the
     /// next step's first shift is ten times this one's, at least ten times SHIFT_FIRST. False
     /// past SHIFT_MAX, where there is nothing stiffer to try.
-    pub fn stiffen(&mut self) -> bool {
+    pub(crate) fn stiffen(&mut self) -> bool {
         if self.last_shift >= SHIFT_MAX {
             return false;
         }
@@ -250,13 +257,13 @@ impl KktSystem {
     /// Whether the last successful step's KKT matrix had the stable inertia at a shift of
     /// round-off size (at most SHIFT_MIN): H was then positive definite on the null space of J
     /// up to round-off, as the stability test would find it a step later.
-    pub fn stable_at_round_off(&self) -> bool {
+    pub(crate) fn stable_at_round_off(&self) -> bool {
         self.last_shift <= SHIFT_MIN
     }
 
     /// The next shift after `shift` failed the inertia test; None past SHIFT_MAX (and the
     /// remembered shift is forgotten).
-    pub fn raise(&mut self, shift: f64) -> Option<f64> {
+    pub(crate) fn raise(&mut self, shift: f64) -> Option<f64> {
         if shift >= SHIFT_MAX {
             self.last_shift = 0.0;
             return None;
@@ -275,21 +282,17 @@ impl KktSystem {
     /// The SQP step with the KKT matrix shifted by `shift` x diag(max(|H_ii|, mean |diag H|));
     /// Err when it does not have the inertia of a stable constrained problem (or the solve is
     /// inaccurate). Remembers a successful shift.
-    #[allow(clippy::too_many_arguments)]
-    pub fn step_shifted(
+    pub(crate) fn step_shifted(
         &mut self,
         h: &Pattern,
-        h_values: &[f64],
-        j_values: &[f64],
-        g: &[f64],
-        c: &[f64],
+        at: &KktPoint,
         dx: &mut [f64],
         lambda: &mut [f64],
         shift: f64,
     ) -> Result<(), NotPositiveDefinite> {
-        let mean_diag = mean_abs_diagonal(h, h_values);
-        self.load(h, h_values, j_values, mean_diag, shift * mean_diag);
-        self.factorize(h).and_then(|_| self.solve(g, c, dx, lambda))?;
+        let mean_diag = mean_abs_diagonal(h, at.h);
+        self.load(h, at.h, at.jac, mean_diag, shift * mean_diag);
+        self.factorize(h).and_then(|_| self.solve(at.grad, at.c, dx, lambda))?;
         self.last_shift = shift;
         self.shift = shift * mean_diag;
         Ok(())
@@ -297,14 +300,14 @@ impl KktSystem {
 
     /// The shift's metric: d(K)/d(shift) is diag(w) x mean |diag H| on the DOF block, with
     /// w_i = max(|H_ii|, mean) / mean (dimensionless).
-    pub fn shift_weights(&self, h: &Pattern, h_values: &[f64]) -> (Vec<f64>, f64) {
+    pub(crate) fn shift_weights(&self, h: &Pattern, h_values: &[f64]) -> (Vec<f64>, f64) {
         let mean = mean_abs_diagonal(h, h_values).max(f64::MIN_POSITIVE);
         (h.diag.iter().map(|&d| h_values[d as usize].abs().max(mean) / mean).collect(), mean)
     }
 
     /// With the last factorization: the DOF part of K^-1 [r; 0] (a solve on the constraints'
     /// null space).
-    pub fn solve_null(&mut self, r: &[f64], out: &mut [f64]) -> Result<(), NotPositiveDefinite> {
+    pub(crate) fn solve_null(&mut self, r: &[f64], out: &mut [f64]) -> Result<(), NotPositiveDefinite> {
         let g: Vec<f64> = r.iter().map(|v| -v).collect();
         let (c, mut mu) = (vec![0.0; self.m], vec![0.0; self.m]);
         self.solve(&g, &c, out, &mut mu)
@@ -312,7 +315,7 @@ impl KktSystem {
 
     /// A second-order correction with the last factorization: the step that, to first order,
     /// brings the constraints from `c` back to zero with no gradient, `K [d; mu] = [0; -c]`.
-    pub fn correct(&mut self, c: &[f64], d: &mut [f64]) -> Result<(), NotPositiveDefinite> {
+    pub(crate) fn correct(&mut self, c: &[f64], d: &mut [f64]) -> Result<(), NotPositiveDefinite> {
         let g = vec![0.0; self.n];
         let mut mu = vec![0.0; self.m];
         self.solve(&g, c, d, &mut mu)
@@ -573,7 +576,7 @@ mod tests {
         let (p, h, jac, mut kkt) = setup([-1.0, -2.0, 1.0, 2.0, 3.0, 4.0], KktMethod::Ldlt);
         let (g, c) = (vec![1.0; 6], vec![0.5, 0.0, -0.5]);
         let (mut dx, mut lambda) = (vec![0.0; 6], vec![0.0; 3]);
-        kkt.step(&p, &h, &jac, &g, &c, &mut dx, &mut lambda).unwrap();
+        kkt.step(&p, &KktPoint { h: &h, jac: &jac, grad: &g, c: &c }, &mut dx, &mut lambda).unwrap();
         assert_eq!(kkt.shift, 0.0, "no shift: the reduced Hessian is positive definite");
         let expect = [-0.5, 0.0, 0.5, -0.5, -1.0 / 3.0, -0.25];
         for (a, b) in dx.iter().zip(expect) {
@@ -616,13 +619,13 @@ mod tests {
         let (p, h, jac, mut kkt) = setup([1.0, 1.0, 1.0, -1.0, 2.0, 2.0], KktMethod::Ldlt);
         let (g, c) = (vec![1.0; 6], vec![0.0; 3]);
         let (mut dx, mut lambda) = (vec![0.0; 6], vec![0.0; 3]);
-        kkt.step(&p, &h, &jac, &g, &c, &mut dx, &mut lambda).unwrap();
+        kkt.step(&p, &KktPoint { h: &h, jac: &jac, grad: &g, c: &c }, &mut dx, &mut lambda).unwrap();
         assert!(kkt.shift > 1.0, "the shift makes the free block positive definite: {}", kkt.shift);
         let slope: f64 = dx.iter().zip(&g).map(|(a, b)| a * b).sum();
         assert!(slope < 0.0, "a descent direction");
         // Schur shifts even when only the held directions are negative.
         let (p, h, jac, mut schur) = setup([-1.0, -2.0, 1.0, 2.0, 3.0, 4.0], KktMethod::Schur);
-        schur.step(&p, &h, &jac, &g, &c, &mut dx, &mut lambda).unwrap();
+        schur.step(&p, &KktPoint { h: &h, jac: &jac, grad: &g, c: &c }, &mut dx, &mut lambda).unwrap();
         assert!(schur.shift > 2.0, "{}", schur.shift);
     }
 }
@@ -832,11 +835,11 @@ mod ordering_tests {
         let g: Vec<f64> = (0..p.n).map(|i| (i as f64).sin()).collect();
         let cv: Vec<f64> = (0..ldlt.m).map(|r| 0.01 * (r as f64).cos()).collect();
         let (mut dx, mut lambda) = (vec![0.0; p.n], vec![0.0; ldlt.m]);
-        ldlt.step(&p, &h, &jac, &g, &cv, &mut dx, &mut lambda).unwrap();
+        ldlt.step(&p, &KktPoint { h: &h, jac: &jac, grad: &g, c: &cv }, &mut dx, &mut lambda).unwrap();
         assert_eq!(ldlt.shift, 0.0);
         let mut schur = KktSystem::build(&p, &c, KktMethod::Schur);
         let (mut dx_s, mut lambda_s) = (vec![0.0; p.n], vec![0.0; ldlt.m]);
-        schur.step(&p, &h, &jac, &g, &cv, &mut dx_s, &mut lambda_s).unwrap();
+        schur.step(&p, &KktPoint { h: &h, jac: &jac, grad: &g, c: &cv }, &mut dx_s, &mut lambda_s).unwrap();
         let scale = dx_s.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (a, b) in dx.iter().zip(&dx_s) {
             assert!((a - b).abs() < 1e-9 * scale, "{a} against {b}");

@@ -24,7 +24,7 @@ pub const PARALLEL_MIN_DOFS: usize = 200_000;
 /// per factorization). METIS against ours (benches/orderings.rs): the H15 3D patch (small,
 /// 47.6k DOFs) nnz(L) 22.2M against 26.0M, 357 against 476 ms; the creature 3.9M against 4.5M,
 /// 54 ms both.
-pub const NESTED_DISSECTION_MIN_DOFS: usize = 20_000;
+pub(crate) const NESTED_DISSECTION_MIN_DOFS: usize = 20_000;
 
 pub struct CholeskySolver {
     symbolic: SymbolicCholesky<u32>,
@@ -92,7 +92,7 @@ impl CholeskySolver {
     }
 
     /// The LL^T factor's arithmetic from now on (a change forgets the last factor).
-    pub fn set_precision(&mut self, precision: Precision) {
+    pub(crate) fn set_precision(&mut self, precision: Precision) {
         if precision != self.precision {
             self.precision = precision;
             self.factored = false;
@@ -156,7 +156,7 @@ impl CholeskySolver {
 
     /// Solves A X = B in place for every column of B with the last factorization (one blocked
     /// pass over the factor instead of one per column).
-    pub fn solve_columns(&mut self, rhs: MatMut<'_, f64>) {
+    pub(crate) fn solve_columns(&mut self, rhs: MatMut<'_, f64>) {
         assert!(self.factored, "solve after a successful factorization");
         assert!(self.precision == Precision::F64, "blocked solves are f64 only (the KKT Schur path)");
         let k = rhs.ncols();
@@ -203,7 +203,7 @@ impl CholeskySolver {
     }
 
     /// Solves A x = rhs in place with the last `inertia` factor (A's LDL^T).
-    pub fn solve_ldl(&mut self, rhs: &mut [f64]) {
+    pub(crate) fn solve_ldl(&mut self, rhs: &mut [f64]) {
         assert!(!self.ldl.is_empty(), "solve_ldl after a successful inertia");
         ldlt_solve(&self.symbolic, &self.ldl, self.par, &mut self.mem, rhs);
     }
@@ -211,7 +211,7 @@ impl CholeskySolver {
     /// Solves (P^T L |D| L^T P) x = rhs in place with the last `inertia` factor: a symmetric
     /// positive definite approximation of |H|^-1 (the eigen-solver's preconditioner; for a
     /// definite H it is H^-1 itself).
-    pub fn solve_abs(&mut self, rhs: &mut [f64]) {
+    pub(crate) fn solve_abs(&mut self, rhs: &mut [f64]) {
         assert!(!self.ldl.is_empty(), "solve_abs after a successful inertia");
         let flip = |ldl: &mut [f64], at: &[usize]| at.iter().for_each(|&k| ldl[k] = -ldl[k]);
         flip(&mut self.ldl, &self.negative_pivots);
@@ -220,17 +220,8 @@ impl CholeskySolver {
     }
 
     /// Whether the last factorization succeeded (its factor can precondition CG).
-    pub fn is_factored(&self) -> bool {
+    pub(crate) fn is_factored(&self) -> bool {
         self.factored
-    }
-
-    pub fn factor_nnz(&self) -> usize {
-        self.symbolic.len_val()
-    }
-
-    /// Whether faer chose the supernodal (blocked, parallel) factorization.
-    pub fn is_supernodal(&self) -> bool {
-        matches!(self.symbolic.raw(), faer::sparse::linalg::cholesky::SymbolicCholeskyRaw::Supernodal(_))
     }
 }
 
@@ -315,7 +306,7 @@ pub(super) fn negative_pivots(symbolic: &SymbolicCholesky<u32>, l_values: &[f64]
 }
 
 /// y = A x for the symmetric matrix whose lower triangle is stored as CSC (col_ptr, row_idx).
-pub fn symmetric_product_into(col_ptr: &[u32], row_idx: &[u32], values: &[f64], x: &[f64], y: &mut [f64]) {
+pub(crate) fn symmetric_product_into(col_ptr: &[u32], row_idx: &[u32], values: &[f64], x: &[f64], y: &mut [f64]) {
     y.iter_mut().for_each(|v| *v = 0.0);
     for c in 0..col_ptr.len() - 1 {
         let span = col_ptr[c] as usize..col_ptr[c + 1] as usize;

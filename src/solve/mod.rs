@@ -19,7 +19,7 @@ pub mod ordering;
 pub mod packed;
 pub mod pattern;
 mod progress;
-pub mod scatter;
+pub(crate) mod scatter;
 pub mod settings;
 pub mod settle;
 pub mod stability;

@@ -7,7 +7,7 @@ use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
     evaluate, factorize_shifted, line_search, mean_abs_diagonal, step, symmetric_product, symmetric_product_into,
-    FrameOutcome, FrameStart, MAX_ESCAPES, ROUND_OFF,
+    FrameOutcome, FrameStart, Search, MAX_ESCAPES, ROUND_OFF,
 };
 use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
@@ -60,7 +60,7 @@ pub(super) fn newton(
         if it.progress.first() && it.out.escapes == 0 {
             it.out.start_energy = phi;
         }
-        let at = Point { phi, residual, filter };
+        let at = Point { phi, residual, gnorm, filter };
         if it.progress.record(residual) {
             it.out.converged = true;
             let check = settings.stability_check && inertia.is_none() && n > 0 && it.out.escapes < MAX_ESCAPES;
@@ -76,13 +76,13 @@ pub(super) fn newton(
         // factor (inexact Newton: relative tolerance min(0.1, sqrt(residual))).
         let krylov = (settings.linear, chol.is_factored() && settings.mode != SolveMode::LinearizedEuler);
         if let (LinearSolver::Krylov { max_iterations }, true) = krylov {
-            match it.krylov_step(packed, pattern, chol, settings, &at, gnorm, max_iterations, &total) {
+            match it.krylov_step(packed, pattern, chol, (settings, max_iterations), &at, &total) {
                 Some(true) => continue,
                 Some(false) => break,
                 None => {}
             }
         }
-        if !it.direct_direction(packed, pattern, chol, settings, &at, gnorm)? {
+        if !it.direct_direction(packed, pattern, chol, settings, &at)? {
             it.progress.projecting = true; // H15: fall back to the projected Hessian
             continue;
         }
@@ -112,10 +112,12 @@ struct Loop {
     progress: Progress,
 }
 
-/// The iterate: its potential, relative residual and the Hessian filter it was assembled with.
+/// The iterate: its potential, relative residual, gradient norm and the Hessian filter it was
+/// assembled with.
 struct Point {
     phi: f64,
     residual: f64,
+    gnorm: f64,
     filter: Filter,
 }
 
@@ -133,7 +135,8 @@ impl Loop {
     ) -> bool {
         let slope: f64 = self.dx.iter().zip(&self.grad).map(|(a, b)| a * b).sum();
         let (phi, residual, scale, tol) = (at.phi, at.residual, self.energy_scale, settings.tolerance);
-        line_search(packed, pattern, &self.dx, slope, phi, residual, scale, tol, total, &mut self.out)
+        let search = Search { dx: &self.dx, slope, phi, residual, energy_scale: scale, tolerance: tol };
+        line_search(packed, pattern, search, total, &mut self.out)
     }
 
     /// At a converged point, the stability check (`settings.stability_test`): true when the
@@ -153,11 +156,9 @@ impl Loop {
         let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
         let settle = self.out.escapes > 0 && self.out.iterations < settings.max_iterations;
         let clock = std::time::Instant::now();
-        let (values, grad, scale) = (&self.values, &self.grad, self.energy_scale);
+        let (values, scale) = (&self.values, self.energy_scale);
         let left = match settings.stability_test {
-            StabilityTest::Inertia => {
-                leave_unstable(packed, pattern, chol, values, grad, at.phi, scale, settle, &energy_at)
-            }
+            StabilityTest::Inertia => self.leave_unstable(packed, pattern, chol, at.phi, settle, &energy_at),
             StabilityTest::ShiftedCholesky => leave_saddle(packed, pattern, chol, values, at.phi, scale, &energy_at)
                 .map_or(Leave::Stay, Leave::Escape),
         };
@@ -179,23 +180,56 @@ impl Loop {
         }
     }
 
+    /// At a converged point: the inertia test of the exact Hessian (`values`) (`stability.rs`); when
+    /// unstable, a lower-energy state along its most negative curvature. With `settle` (a saddle
+    /// was left this frame), a stable point whose exact Newton step -H^-1 g (from the same LDL^T)
+    /// is above SETTLED_STEP is not converged yet. Where the LDL^T breaks down (a zero pivot), the
+    /// shifted-Cholesky test decides.
+    fn leave_unstable(
+        &self,
+        packed: &PackedPatch,
+        pattern: &Pattern,
+        chol: &mut CholeskySolver,
+        phi: f64,
+        settle: bool,
+        energy_at: &dyn Fn(&[DVec3]) -> f64,
+    ) -> Leave {
+        let (h, grad, energy_scale) = (&self.values, &self.grad, self.energy_scale);
+        match stability::test(pattern, chol, h) {
+            Some(Verdict::Stable) if settle => {
+                let mut dx: Vec<f64> = grad.iter().map(|g| -g).collect();
+                chol.solve_ldl(&mut dx);
+                if max_abs(&dx) > SETTLED_STEP * packed.length_scale {
+                    Leave::Settle(dx)
+                } else {
+                    Leave::Stay
+                }
+            }
+            Some(Verdict::Stable) => Leave::Stay,
+            Some(Verdict::Unstable { direction, .. }) => {
+                stability::escape(&packed.state.x, &pattern.dof, &direction, phi, packed.length_scale, energy_at)
+                    .map_or(Leave::Stay, Leave::Escape)
+            }
+            None => {
+                leave_saddle(packed, pattern, chol, h, phi, energy_scale, energy_at).map_or(Leave::Stay, Leave::Escape)
+            }
+        }
+    }
+
     /// Krylov mode: CG preconditioned by the last factor, then the line search when it gives a
     /// descent direction: Some(whether a step was taken), None to fall back to a factorization.
-    #[allow(clippy::too_many_arguments)]
     fn krylov_step(
         &mut self,
         packed: &mut PackedPatch,
         pattern: &Pattern,
         chol: &mut CholeskySolver,
-        settings: &SolverSettings,
+        (settings, max_iterations): (&SolverSettings, u32),
         at: &Point,
-        gnorm: f64,
-        max_iterations: u32,
         total: &Total,
     ) -> Option<bool> {
         let clock = std::time::Instant::now();
         let b: Vec<f64> = self.grad.iter().map(|g| -g).collect();
-        let tol = 0.1f64.min(at.residual.sqrt()) * gnorm;
+        let tol = 0.1f64.min(at.residual.sqrt()) * at.gnorm;
         let cg = pcg(pattern, &self.values, chol, &b, &mut self.dx, tol, max_iterations);
         self.out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
         self.out.cg_iterations += cg.unwrap_or_else(|e| e);
@@ -219,8 +253,8 @@ impl Loop {
         chol: &mut CholeskySolver,
         settings: &SolverSettings,
         at: &Point,
-        gnorm: f64,
     ) -> Result<bool, SolveError> {
+        let gnorm = at.gnorm;
         let adaptive = at.filter == Filter::Exact && settings.projection == Projection::Adaptive;
         let clock = std::time::Instant::now();
         let factorized = chol.factorize(pattern, &self.values);
@@ -330,42 +364,6 @@ enum Leave {
 /// scale, so the residual test alone stops on the way to the buckled state (the Euler strip
 /// just past its critical load: at 65 % of the amplitude, 1.06 P_cr).
 const SETTLED_STEP: f64 = 1e-7;
-
-/// At a converged point: the inertia test of the exact Hessian `h` (`stability.rs`); when
-/// unstable, a lower-energy state along its most negative curvature. With `settle` (a saddle
-/// was left this frame), a stable point whose exact Newton step -H^-1 g (from the same LDL^T)
-/// is above SETTLED_STEP is not converged yet. Where the LDL^T breaks down (a zero pivot), the
-/// shifted-Cholesky test decides.
-#[allow(clippy::too_many_arguments)]
-fn leave_unstable(
-    packed: &PackedPatch,
-    pattern: &Pattern,
-    chol: &mut CholeskySolver,
-    h: &[f64],
-    grad: &[f64],
-    phi: f64,
-    energy_scale: f64,
-    settle: bool,
-    energy_at: &dyn Fn(&[DVec3]) -> f64,
-) -> Leave {
-    match stability::test(pattern, chol, h) {
-        Some(Verdict::Stable) if settle => {
-            let mut dx: Vec<f64> = grad.iter().map(|g| -g).collect();
-            chol.solve_ldl(&mut dx);
-            if max_abs(&dx) > SETTLED_STEP * packed.length_scale {
-                Leave::Settle(dx)
-            } else {
-                Leave::Stay
-            }
-        }
-        Some(Verdict::Stable) => Leave::Stay,
-        Some(Verdict::Unstable { direction, .. }) => {
-            stability::escape(&packed.state.x, &pattern.dof, &direction, phi, packed.length_scale, energy_at)
-                .map_or(Leave::Stay, Leave::Escape)
-        }
-        None => leave_saddle(packed, pattern, chol, h, phi, energy_scale, energy_at).map_or(Leave::Stay, Leave::Escape),
-    }
-}
 
 /// The shifted-Cholesky test (`StabilityTest::ShiftedCholesky`): if the exact Hessian `h` is
 /// indefinite, returns a lower-energy state along its most negative curvature direction

@@ -59,7 +59,7 @@ pub fn metis_nested_dissection(col_ptr: &[u32], row_idx: &[u32]) -> Option<Vec<u
 }
 
 /// Vertex elimination order. `adjacency` must be symmetric (both directions listed).
-pub fn nested_dissection(points: &[DVec3], adjacency: &[Vec<u32>]) -> Vec<u32> {
+pub(crate) fn nested_dissection(points: &[DVec3], adjacency: &[Vec<u32>]) -> Vec<u32> {
     let n = points.len();
     let mut order = Vec::with_capacity(n);
     let mut side = vec![0u8; n];

@@ -73,7 +73,7 @@ impl PackedState {
     }
 
     /// Copies every tied coordinate from its master, so shared DOFs start equal.
-    pub fn sync_ties(&mut self) {
+    pub(crate) fn sync_ties(&mut self) {
         for v in 0..self.x.len() {
             let (m, dofs) = self.tie[v];
             if m as usize != v {

@@ -144,7 +144,7 @@ impl Pattern {
     }
 
     /// Position of the (symmetric) entry of DOFs a and b, None outside the pattern.
-    pub fn position_of(&self, a: u32, b: u32) -> Option<u32> {
+    pub(crate) fn position_of(&self, a: u32, b: u32) -> Option<u32> {
         let (r, c) = if a >= b { (a, b) } else { (b, a) };
         let (s, e) = (self.col_ptr[c as usize] as usize, self.col_ptr[c as usize + 1] as usize);
         self.row_idx[s..e].binary_search(&r).ok().map(|k| (s + k) as u32)

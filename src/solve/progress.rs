@@ -29,19 +29,25 @@ pub(super) struct Progress {
 
 impl Progress {
     /// `energy_scale`: the elements' energy at unit strain (J); `length_scale`: the patch's size.
-    pub fn new(tolerance: f64, projection: Projection, energy_scale: f64, length_scale: f64, dofs: usize) -> Self {
+    pub(super) fn new(
+        tolerance: f64,
+        projection: Projection,
+        energy_scale: f64,
+        length_scale: f64,
+        dofs: usize,
+    ) -> Self {
         let floor = FORCE_FLOOR * energy_scale / length_scale.max(f64::MIN_POSITIVE);
         Progress { tolerance, projection, floor, empty: dofs == 0, history: Vec::new(), projecting: true }
     }
 
     /// The element-Hessian filter for the next assembly.
-    pub fn filter(&self) -> Filter {
+    pub(super) fn filter(&self) -> Filter {
         element_filter(self.projection, self.projecting)
     }
 
     /// The gradient norm relative to the internal forces, but never to less than those of a
     /// 1e-6 strain: an unloaded patch has only round-off forces and is converged.
-    pub fn residual(&self, gnorm: f64, force_scale: f64) -> f64 {
+    pub(super) fn residual(&self, gnorm: f64, force_scale: f64) -> f64 {
         let reference = force_scale.max(self.floor);
         if reference > 0.0 {
             (gnorm / reference).max(0.0)
@@ -51,14 +57,14 @@ impl Progress {
     }
 
     /// Whether no iterate was recorded since the start (or the last restart).
-    pub fn first(&self) -> bool {
+    pub(super) fn first(&self) -> bool {
         self.history.is_empty()
     }
 
     /// Records an iterate's residual: true when it is converged, at the tolerance or at the
     /// round-off floor (within 1000x of the tolerance and no progress over the last STALL
     /// iterations).
-    pub fn record(&mut self, residual: f64) -> bool {
+    pub(super) fn record(&mut self, residual: f64) -> bool {
         if residual < ADAPTIVE_SWITCH {
             self.projecting = false;
         }
@@ -70,7 +76,7 @@ impl Progress {
     }
 
     /// Forgets the recorded residuals (the solve moved to a new start: a saddle was left).
-    pub fn restart(&mut self) {
+    pub(crate) fn restart(&mut self) {
         self.history.clear();
     }
 }

@@ -34,7 +34,7 @@ impl<const NV: usize> Vertices for [u32; NV] {
 }
 
 /// Energy, gradient and Hessian of an element with N = 3 NV coordinates.
-pub type Derivatives<const N: usize> = (f64, SVector<f64, N>, SMatrix<f64, N, N>);
+pub(crate) type Derivatives<const N: usize> = (f64, SVector<f64, N>, SMatrix<f64, N, N>);
 
 /// An element's energy, gradient and Hessian over its 3 NV coordinates.
 pub trait Local: Send + Sync {
@@ -65,7 +65,7 @@ impl<const N: usize> Local for Derivatives<N> {
 
 /// The gradient over free DOFs and the Hessian's lower-triangle values being assembled, and
 /// the sum of element force magnitudes.
-pub struct Scatter<'a> {
+pub(crate) struct Scatter<'a> {
     pub(crate) dof: &'a [u32],
     pub(crate) grad: &'a mut [f64],
     pub(crate) values: &'a mut [f64],

@@ -59,7 +59,7 @@ pub enum SolveMode {
 
 impl SolveMode {
     /// Whether the frame is a time step (an inertia term and velocities).
-    pub fn is_dynamic(self) -> bool {
+    pub(crate) fn is_dynamic(self) -> bool {
         self != SolveMode::Quasistatic
     }
 }

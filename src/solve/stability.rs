@@ -118,7 +118,7 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<V
 /// by K(mu)^-1 [r; 0] (the KKT factor at the smallest definite shift), whose solutions lie in
 /// that null space: the direction moves no kernel average to first order. None when the test
 /// cannot tell (Schur, or an LDL^T breakdown). Replaces the KKT factorization.
-pub fn test_constrained(pattern: &Pattern, kkt: &mut KktSystem, h: &[f64], jac: &[f64]) -> Option<Verdict> {
+pub(crate) fn test_constrained(pattern: &Pattern, kkt: &mut KktSystem, h: &[f64], jac: &[f64]) -> Option<Verdict> {
     let negative = kkt.unstable_directions(pattern, h, jac)?;
     tracing::debug!(negative, "constrained inertia");
     if negative == 0 {

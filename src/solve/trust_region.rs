@@ -13,7 +13,7 @@ use super::constraints::Constraints;
 use super::error::SolveError;
 use super::eval::{energy, EnergyParts};
 use super::iteration::{correction, step, FrameOutcome};
-use super::kkt::KktSystem;
+use super::kkt::{KktPoint, KktSystem};
 use super::packed::PackedPatch;
 use super::pattern::Pattern;
 use super::progress::ADAPTIVE_SWITCH;
@@ -42,10 +42,7 @@ pub(super) struct TrustRegion {
 
 /// What one trust-region iteration needs from the constrained Newton loop.
 pub(super) struct Iterate<'a> {
-    pub h: &'a [f64],
-    pub jac: &'a [f64],
-    pub grad: &'a [f64],
-    pub c: &'a [f64],
+    pub point: KktPoint<'a>,
     pub constraints: &'a Constraints,
     /// The objective Phi (without the penalty) at the iterate, and its residual.
     pub phi: f64,
@@ -54,7 +51,7 @@ pub(super) struct Iterate<'a> {
 }
 
 impl TrustRegion {
-    pub fn new() -> Self {
+    pub(super) fn new() -> Self {
         TrustRegion { radius: f64::INFINITY }
     }
 
@@ -62,7 +59,7 @@ impl TrustRegion {
     /// `lambda` the new multipliers and `rho` the penalty; false when no trial was accepted
     /// (the state is unchanged). Every trial counts as a Newton iteration.
     #[allow(clippy::too_many_arguments)]
-    pub fn step(
+    pub(super) fn step(
         &mut self,
         packed: &mut PackedPatch,
         pattern: &Pattern,
@@ -74,9 +71,9 @@ impl TrustRegion {
         out: &mut FrameOutcome,
     ) -> Result<bool, SolveError> {
         let n = pattern.n;
-        let (w, mean) = kkt.shift_weights(pattern, it.h);
+        let (w, mean) = kkt.shift_weights(pattern, it.point.h);
         let wnorm = |p: &[f64]| p.iter().zip(&w).map(|(a, b)| b * a * a).sum::<f64>().sqrt();
-        let c_l1: f64 = it.c.iter().map(|v| v.abs()).sum();
+        let c_l1: f64 = it.point.c.iter().map(|v| v.abs()).sum();
         let noise = ROUND_OFF * it.energy_scale;
         let (mut p, mut q, mut hp) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         let mut shift = kkt.first_shift();
@@ -86,7 +83,7 @@ impl TrustRegion {
             let mut secular = 0;
             loop {
                 let clock = std::time::Instant::now();
-                let solved = kkt.step_shifted(pattern, it.h, it.jac, it.grad, it.c, &mut p, lambda, shift);
+                let solved = kkt.step_shifted(pattern, &it.point, &mut p, lambda, shift);
                 out.counters.factorize_ms += clock.elapsed().as_secs_f64() * 1e3;
                 if solved.is_err() {
                     shift = kkt.raise(shift).ok_or(SolveError::NoDescent { iterations: out.iterations })?;
@@ -111,8 +108,8 @@ impl TrustRegion {
             let norm = wnorm(&p);
             let scale = if norm > (1.0 + BOUNDARY) * self.radius { self.radius / norm } else { 1.0 };
             // The model's decrease: -(g.s + s^2/2 p^T H p) + rho s |c|_1 (J p = -c).
-            super::linear::symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, it.h, &p, &mut hp);
-            let gp: f64 = p.iter().zip(it.grad).map(|(a, b)| a * b).sum();
+            super::linear::symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, it.point.h, &p, &mut hp);
+            let gp: f64 = p.iter().zip(it.point.grad).map(|(a, b)| a * b).sum();
             let php: f64 = p.iter().zip(&hp).map(|(a, b)| a * b).sum();
             let model = scale * gp + 0.5 * scale * scale * php;
             *rho = rho.max(2.0 * lambda.iter().fold(0.0f64, |a, l| a.max(l.abs())));

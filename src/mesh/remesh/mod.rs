@@ -33,7 +33,7 @@ pub struct RemeshParams {
 }
 
 /// The longest edge a kernel support allows, relative to the kernel radius.
-pub const KERNEL_EDGES: f64 = 0.5;
+pub(crate) const KERNEL_EDGES: f64 = 0.5;
 
 impl RemeshParams {
     /// These thresholds with `size_max` capped by the radii of the kernels on the layer. A
@@ -126,7 +126,7 @@ pub fn remesh(vertices: &[RemeshVertex], faces: &[[u32; 3]], p: &RemeshParams) -
 
 /// `remesh` with one more sizing term per input face (`sizing::wavelength_term`), or none, and
 /// the input faces no operation may change (`held`, one per face, or none).
-pub fn remesh_sized(
+pub(crate) fn remesh_sized(
     vertices: &[RemeshVertex],
     faces: &[[u32; 3]],
     extra: &[DMat2],

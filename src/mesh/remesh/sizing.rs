@@ -16,7 +16,7 @@ pub struct FaceGeometry {
 
 impl FaceGeometry {
     /// Material-space edge matrix Dm = [u1 - u0, u2 - u0].
-    pub fn dm(&self) -> DMat2 {
+    pub(crate) fn dm(&self) -> DMat2 {
         DMat2::from_cols(self.uv[1] - self.uv[0], self.uv[2] - self.uv[0])
     }
 
@@ -35,7 +35,7 @@ impl FaceGeometry {
 }
 
 /// The Green strain (F^T F - I) / 2 of a face's map from material to world space.
-pub fn green_strain(face: &FaceGeometry) -> DMat2 {
+pub(crate) fn green_strain(face: &FaceGeometry) -> DMat2 {
     (gram(face.gradient(face.x)) - DMat2::IDENTITY) * 0.5
 }
 
@@ -47,7 +47,7 @@ fn gram(g: [DVec3; 2]) -> DMat2 {
 
 /// Eigen-decomposition of a symmetric 2x2 matrix: (eigenvalues ascending, unit eigenvector of
 /// the first).
-pub fn sym_eigen(m: DMat2) -> ([f64; 2], DVec2) {
+pub(crate) fn sym_eigen(m: DMat2) -> ([f64; 2], DVec2) {
     let (a, b, d) = (m.x_axis.x, 0.5 * (m.x_axis.y + m.y_axis.x), m.y_axis.y);
     let mean = 0.5 * (a + d);
     let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
@@ -114,7 +114,7 @@ impl Disk {
 /// A "tensor max" of PSD metrics: a PSD matrix that dominates every term (the smallest such
 /// for two terms; for more, the terms are enclosed one at a time, which may exceed the smallest
 /// by a little and so refines slightly more, never less).
-pub fn tensor_max(terms: &[DMat2]) -> DMat2 {
+pub(crate) fn tensor_max(terms: &[DMat2]) -> DMat2 {
     let mut iter = terms.iter().map(|&m| Disk::of(m));
     let Some(first) = iter.next() else { return DMat2::ZERO };
     iter.fold(first, Disk::enclose).matrix()
@@ -164,7 +164,7 @@ pub fn compression(e: DMat2, normal_gram: DMat2, c: f64) -> DMat2 {
 
 /// The unclamped metric of one face: curvature (dihedral and normal gradient), compression and,
 /// when `velocity` is given, the velocity gradient, combined by `tensor_max`.
-pub fn face_metric(
+pub(crate) fn face_metric(
     face: &FaceGeometry,
     theta: [f64; 3],
     normals: [DVec3; 3],
@@ -213,7 +213,7 @@ pub struct WavelengthSizing {
 /// The compressive strain at which a plate of thickness h held to wrinkles of wavelength lambda
 /// buckles: N = D k^2 with k = 2 pi / lambda over the membrane stiffness E h / (1 - nu^2), so
 /// (k h)^2 / 12 (LK14 3.1: the kernels fix the wavelength, the layer's bending sets the load).
-pub fn critical_strain(thickness: f64, lambda: f64) -> f64 {
+pub(crate) fn critical_strain(thickness: f64, lambda: f64) -> f64 {
     let k = 2.0 * std::f64::consts::PI / lambda;
     (k * thickness).powi(2) / 12.0
 }
@@ -237,7 +237,7 @@ pub fn wavelength_term(strain: DMat2, lambda: f64, critical: f64, w: &Wavelength
 
 /// `terms` grown by `margin`: a face without a term takes that of the nearest face with one whose
 /// centroid lies within `margin` of its own (the first such face on a tie).
-pub fn grow_terms(terms: &[DMat2], centroids: &[DVec2], margin: f64) -> Vec<DMat2> {
+pub(crate) fn grow_terms(terms: &[DMat2], centroids: &[DVec2], margin: f64) -> Vec<DMat2> {
     if margin <= 0.0 {
         return terms.to_vec();
     }
@@ -284,7 +284,7 @@ pub fn held_faces(terms: &[DMat2], uv: &[DVec2], faces: &[[u32; 3]], slack: f64)
 }
 
 /// The material centroid of each face.
-pub fn face_centroids(uv: &[DVec2], faces: &[[u32; 3]]) -> Vec<DVec2> {
+pub(crate) fn face_centroids(uv: &[DVec2], faces: &[[u32; 3]]) -> Vec<DVec2> {
     faces.iter().map(|f| f.iter().map(|&i| uv[i as usize]).sum::<DVec2>() / 3.0).collect()
 }
 
@@ -349,7 +349,7 @@ pub fn wavelength_terms(
 /// Per-vertex metrics for a surface (REMESH.md): each face's clamped metric, then the
 /// material-area-weighted mean over a vertex's faces. `extra`, when not empty, holds one more
 /// term per face (the wavelength term), combined by `tensor_max` before the clamp.
-pub fn vertex_sizing(
+pub(crate) fn vertex_sizing(
     uv: &[DVec2],
     x: &[DVec3],
     velocity: Option<&[DVec3]>,
@@ -396,7 +396,7 @@ pub fn vertex_sizing(
 }
 
 /// The metric length of a material-space edge u between vertices with metrics ma and mb.
-pub fn edge_size(u: DVec2, ma: DMat2, mb: DMat2) -> f64 {
+pub(crate) fn edge_size(u: DVec2, ma: DMat2, mb: DMat2) -> f64 {
     (0.5 * (u.dot(ma * u) + u.dot(mb * u))).max(0.0).sqrt()
 }
 

@@ -64,7 +64,7 @@ impl Clip {
     }
 
     /// The time of the last key of any channel (s); the clip holds its last values after it.
-    pub fn duration(&self) -> f64 {
+    pub(crate) fn duration(&self) -> f64 {
         self.channels.iter().filter_map(|c| c.times.last().copied()).fold(0.0, f64::max)
     }
 

@@ -38,7 +38,7 @@ impl Asset {
 
     /// Reads the mesh named `mesh_name` (`None`: the only mesh) with its skin, morph targets, node
     /// hierarchy and animations, validates it and welds its vertices.
-    pub fn load_mesh(path: impl AsRef<Path>, mesh_name: Option<&str>) -> Result<Asset, RigError> {
+    pub(crate) fn load_mesh(path: impl AsRef<Path>, mesh_name: Option<&str>) -> Result<Asset, RigError> {
         let path = path.as_ref();
         let gltf = ::gltf::Gltf::open(path).map_err(|source| RigError::Open { path: path.to_owned(), source })?;
         let ::gltf::Gltf { document, blob } = gltf;

@@ -37,7 +37,7 @@ pub struct DualQuat {
 }
 
 impl DualQuat {
-    pub fn from_rotation_translation(rotation: DQuat, translation: DVec3) -> DualQuat {
+    pub(crate) fn from_rotation_translation(rotation: DQuat, translation: DVec3) -> DualQuat {
         let t = DQuat::from_xyzw(translation.x, translation.y, translation.z, 0.0);
         DualQuat { real: rotation, dual: (t * rotation) * 0.5 }
     }
@@ -45,13 +45,13 @@ impl DualQuat {
     /// Applies the motion, assuming `real` is unit (as after [`DualQuat::normalized`]). The
     /// translation is the vector part of `2 dual conj(real)`, which ignores any part of `dual`
     /// parallel to `real` that blending leaves behind.
-    pub fn transform_point(&self, p: DVec3) -> DVec3 {
+    pub(crate) fn transform_point(&self, p: DVec3) -> DVec3 {
         let t = (self.dual * self.real.conjugate()) * 2.0;
         self.real.mul_vec3(p) + DVec3::new(t.x, t.y, t.z)
     }
 
     /// Divides by the length of the real part (DLB's normalisation).
-    pub fn normalized(self) -> DualQuat {
+    pub(crate) fn normalized(self) -> DualQuat {
         let inv = 1.0 / self.real.length();
         DualQuat { real: self.real * inv, dual: self.dual * inv }
     }
@@ -70,7 +70,7 @@ pub fn rigid_deviation(m: &DMat4) -> f64 {
 
 impl Asset {
     /// Global matrix of every node (mesh space of the scene root) for the pose.
-    pub fn global_matrices(&self, pose: &Pose) -> Result<Vec<DMat4>, RigError> {
+    pub(crate) fn global_matrices(&self, pose: &Pose) -> Result<Vec<DMat4>, RigError> {
         self.check_pose(pose)?;
         let mut globals = vec![DMat4::IDENTITY; self.nodes.len()];
         for &n in self.node_order() {
@@ -90,7 +90,7 @@ impl Asset {
     }
 
     /// Welded vertex positions after morphing and skinning (m).
-    pub fn pose_positions(&self, pose: &Pose, skinning: Skinning) -> Result<Vec<DVec3>, RigError> {
+    pub(crate) fn pose_positions(&self, pose: &Pose, skinning: Skinning) -> Result<Vec<DVec3>, RigError> {
         let mut out = Vec::new();
         self.pose_positions_into(pose, skinning, &mut out)?;
         Ok(out)
@@ -100,7 +100,12 @@ impl Asset {
     /// per vertex. Morphs come first (`x = X + sum_k w_k D_k`), then skinning; a mesh without a skin
     /// is moved by its node's global matrix (a skinned mesh's own node transform is ignored, as the
     /// spec says).
-    pub fn pose_positions_into(&self, pose: &Pose, skinning: Skinning, out: &mut Vec<DVec3>) -> Result<(), RigError> {
+    pub(crate) fn pose_positions_into(
+        &self,
+        pose: &Pose,
+        skinning: Skinning,
+        out: &mut Vec<DVec3>,
+    ) -> Result<(), RigError> {
         let globals = self.global_matrices(pose)?;
         let active: Vec<(&[DVec3], f64)> = self
             .morphs

@@ -388,7 +388,7 @@ pub enum MaterialPreset {
 
 impl MaterialPreset {
     /// (Young's modulus in Pa, Poisson ratio, thickness in m).
-    pub fn si(self) -> (f64, f64, f64) {
+    pub(crate) fn si(self) -> (f64, f64, f64) {
         match self {
             MaterialPreset::Lk14Dermis => (4e6, 0.45, 1.3e-3),
             MaterialPreset::Lk14Epidermis => (600e6, 0.45, 0.12e-3),

@@ -18,7 +18,7 @@ pub struct CellElem {
 impl CellElem {
     /// The cell of six tetrahedra over eight distinct vertices (their lambda terms, to be
     /// evaluated here instead); None for any other group.
-    pub fn from_tets(tets: &[TetElem]) -> Option<CellElem> {
+    pub(crate) fn from_tets(tets: &[TetElem]) -> Option<CellElem> {
         if tets.len() != CELL_TETS {
             return None;
         }

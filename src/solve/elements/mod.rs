@@ -73,7 +73,7 @@ elements! {
 impl Elements {
     /// Sum of the elements' energies at unit strain (stiffness x volume): the scale of the
     /// round-off in an energy evaluation, whose densities cancel O(1) terms to O(strain^2).
-    pub fn energy_scale(&self, length: f64) -> f64 {
+    pub(crate) fn energy_scale(&self, length: f64) -> f64 {
         self.terms().iter().map(|t| t.unit_energy(length)).sum()
     }
 
