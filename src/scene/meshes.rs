@@ -26,6 +26,35 @@ pub(super) struct BuiltMesh {
     pub asset_uv: Option<Vec<DVec2>>,
 }
 
+/// Where a layer's mesh is built: its field path, spec, units and placement, the layers
+/// before it, and the smallest wavelength (m) of the couplings on it (for `refine:
+/// Wavelength(n)`).
+struct MeshAt<'a> {
+    field: String,
+    l: &'a LayerSpec,
+    len: f64,
+    offset: DVec3,
+    earlier: &'a [BuiltLayer],
+    index: &'a HashMap<String, usize>,
+    lambda: Option<f64>,
+}
+
+impl BuiltMesh {
+    /// A mesh of its own: nothing shared, no slab, groups, asset, embedding or parents.
+    fn of(mesh: LayerMesh) -> BuiltMesh {
+        BuiltMesh {
+            mesh,
+            shared: Vec::new(),
+            slab: None,
+            groups: None,
+            asset: None,
+            embedding: None,
+            parents: None,
+            asset_uv: None,
+        }
+    }
+}
+
 impl Builder {
     /// `lambda`: the smallest wavelength (m) of the couplings on the layer, for `refine:
     /// Wavelength(n)`.
@@ -41,31 +70,9 @@ impl Builder {
         lambda: Option<f64>,
     ) -> Result<BuiltMesh, SceneError> {
         let field = format!("{at}.mesh");
-        let base_slab = |name: &str| -> Result<(usize, SlabGrid), SceneError> {
-            let i = *index.get(name).ok_or_else(|| {
-                self.err(
-                    format!("{field}.layer"),
-                    format!("no earlier layer named \"{name}\" (layers are listed bottom to top)"),
-                )
-            })?;
-            let slab = earlier.get(i).and_then(|b| b.slab).ok_or_else(|| {
-                self.err(format!("{field}.layer"), format!("\"{name}\" is not a TetSlab or TetOn volume layer"))
-            })?;
-            Ok((i, slab))
-        };
-        let mut shared = Vec::new();
-        let mut slab = None;
-        let mut groups = None;
-        let (mut asset, mut embedding, mut parents) = (None, None, None);
-        let mut asset_uv = None;
-        let positive = |v: f64, what: &str| -> Result<(), SceneError> {
-            if v > 0.0 && v.is_finite() {
-                Ok(())
-            } else {
-                Err(self.err(format!("{field}.{what}"), format!("must be > 0 (got {v})")))
-            }
-        };
-        let mut mesh = match &l.mesh {
+        let cx = MeshAt { field: field.clone(), l, len, offset, earlier, index, lambda };
+        let positive = |v: f64, what: &str| self.positive(&cx, v, what);
+        let mut built = match &l.mesh {
             MeshSpec::Grid { size, cells, pattern, z } => {
                 if l.kind == LayerKind::Volume {
                     return Err(self.err(&field, "a volume layer needs a TetSlab mesh"));
@@ -76,126 +83,27 @@ impl Builder {
                     return Err(self.err(format!("{field}.cells"), "needs at least one cell in each direction"));
                 }
                 self.vertex_budget(&format!("{field}.cells"), [cells.0 as u64 + 1, cells.1 as u64 + 1, 1], l.kind)?;
-                LayerMesh::Surface(mesh::grid(DVec2::new(size.0, size.1) * len, *cells, *pattern, z * len))
+                BuiltMesh::of(LayerMesh::Surface(mesh::grid(
+                    DVec2::new(size.0, size.1) * len,
+                    *cells,
+                    *pattern,
+                    z * len,
+                )))
             }
-            MeshSpec::TetSlab { size, cells, depth, elements, top, grading, coarsen } => {
-                if l.kind != LayerKind::Volume {
-                    return Err(self.err(&field, "a TetSlab mesh belongs to a volume layer"));
-                }
-                positive(size.0, "size")?;
-                positive(size.1, "size")?;
-                positive(*depth, "depth")?;
-                if cells.0 == 0 || cells.1 == 0 {
-                    return Err(self.err(format!("{field}.cells"), "needs at least one cell in each direction"));
-                }
-                if *elements == 0 {
-                    return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
-                }
-                let counts = [cells.0 as u64 + 1, cells.1 as u64 + 1, *elements as u64 + 1];
-                self.vertex_budget(&format!("{field}.cells"), counts, l.kind)?;
-                let size = DVec2::new(size.0, size.1) * len;
-                positive(*grading, "grading")?;
-                let coarsen = match coarsen {
-                    None => None,
-                    Some(c) => {
-                        positive(c.every, "coarsen.every")?;
-                        let from = c.from.unwrap_or(*top);
-                        if !from.is_finite() {
-                            return Err(self.err(format!("{field}.coarsen.from"), "must be finite"));
-                        }
-                        Some(mesh::Coarsening { every: c.every * len, from: from * len })
-                    }
-                };
-                let levels = [(depth * len, *elements, *grading)];
-                let (m, _, planes) = mesh::tet_slab(size, *cells, top * len, &levels, coarsen)
-                    .map_err(|e| self.err(format!("{field}.coarsen.every"), halves_twice(e, len)))?;
-                slab = Some(SlabGrid {
-                    size,
-                    cells: *cells,
-                    origin: offset,
-                    top: top * len + offset.z,
-                    top_cells: *planes.cells.last().unwrap(),
-                    top_first: *planes.first.last().unwrap(),
-                    coarsen,
-                });
-                LayerMesh::Volume(m)
-            }
-            MeshSpec::Obj { path } => {
-                if l.kind == LayerKind::Volume {
-                    return Err(self.err(&field, "OBJ meshes are surfaces: use them for shell or kinematic layers"));
-                }
-                let full = self.dir.join(path);
-                if let Some(problem) = not_a_file(&full) {
-                    return Err(SceneError::at_field(&full, &field, format!("mesh file {problem}")));
-                }
-                let (m, g) = mesh::obj::load_groups(&full, len)
-                    .map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
-                groups = Some(g);
-                mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
-                // A shell's material space (kernels, property and wrinkle maps) falls back to the
-                // rest xy without `vt`: right for a flat sheet, a distortion of a curved one.
-                let io = |e: std::io::Error| SceneError::at_field(&full, &field, e.to_string());
-                let (lo, hi) =
-                    m.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
-                let curved = hi.z - lo.z > 1e-9 * (hi - lo).length();
-                if l.kind == LayerKind::Shell && curved && !mesh::obj::has_texture_coordinates(&full).map_err(io)? {
-                    return Err(SceneError::at_field(
-                        &full,
-                        &field,
-                        "a curved shell needs texture coordinates (`vt`): they are its material space; \
-                         without them it would be the rest x and y, which distort a curved surface",
-                    ));
-                }
-                LayerMesh::Surface(m)
-            }
-            MeshSpec::TetOn { layer, depth, elements, grading } => {
-                if l.kind != LayerKind::Volume {
-                    return Err(self.err(&field, "a TetOn mesh belongs to a volume layer"));
-                }
-                positive(*depth, "depth")?;
-                if *elements == 0 {
-                    return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
-                }
-                let (bi, base) = base_slab(layer)?;
-                let counts = [base.cells.0 as u64 + 1, base.cells.1 as u64 + 1, *elements as u64 + 1];
-                self.vertex_budget(&format!("{field}.elements"), counts, l.kind)?;
-                let new_top = base.top - base.origin.z + depth * len;
-                positive(*grading, "grading")?;
-                let levels = [(depth * len, *elements, *grading)];
-                let (m, _, planes) = mesh::tet_slab(base.size, base.cells, new_top, &levels, base.coarsen)
-                    .map_err(|e| self.err(format!("{field}.elements"), halves_twice(e, len)))?;
-                if planes.cells[0] != base.top_cells {
-                    return Err(self.err(
-                        format!("{field}.depth"),
-                        format!(
-                            "the bottom plane's grid {:?} differs from \"{layer}\"'s top grid {:?} (a plane on a \
-                             coarsening boundary: move it off by a little)",
-                            planes.cells[0], base.top_cells
-                        ),
-                    ));
-                }
-                slab = Some(SlabGrid {
-                    top: new_top + base.origin.z,
-                    top_cells: *planes.cells.last().unwrap(),
-                    top_first: *planes.first.last().unwrap(),
-                    ..base
-                });
-                // The bottom plane is the base's top plane.
-                let plane = base.top_len();
-                shared = (0..m.rest.len()).map(|v| (v < plane).then(|| (bi, (base.top_first + v) as u32))).collect();
-                LayerMesh::Volume(m)
-            }
+            MeshSpec::TetSlab { .. } => self.tet_slab(&cx)?,
+            MeshSpec::Obj { .. } => self.obj_mesh(&cx)?,
+            MeshSpec::TetOn { .. } => self.tet_on(&cx)?,
             MeshSpec::SurfaceOf { layer } => {
                 if l.kind == LayerKind::Volume {
                     return Err(self.err(&field, "SurfaceOf makes a surface: use it for shell or kinematic layers"));
                 }
-                let (bi, base) = base_slab(layer)?;
+                let (bi, base) = self.base_slab(&cx, layer)?;
                 let top_local = base.top - base.origin.z;
                 let mut m = mesh::grid(base.size, base.top_cells, mesh::GridPattern::RightTriangle, top_local);
                 // The slab's prisms split each cell along the same diagonal as RightTriangle.
-                shared = (0..m.rest.len()).map(|v| Some((bi, (base.top_first + v) as u32))).collect();
+                let shared = (0..m.rest.len()).map(|v| Some((bi, (base.top_first + v) as u32))).collect();
                 m.uv.iter_mut().for_each(|u| *u += base.origin.truncate() - offset.truncate());
-                LayerMesh::Surface(m)
+                BuiltMesh { shared, ..BuiltMesh::of(LayerMesh::Surface(m)) }
             }
             MeshSpec::Tube { radius, length, cells, arc } => {
                 self.surface_only(&field, l.kind)?;
@@ -213,7 +121,7 @@ impl Builder {
                     }
                 };
                 let (r, l) = (radius * len, length * len);
-                LayerMesh::Surface(mesh::bodies::tube_arc(r, l, cells.0, cells.1, arc.to_radians()))
+                BuiltMesh::of(LayerMesh::Surface(mesh::bodies::tube_arc(r, l, cells.0, cells.1, arc.to_radians())))
             }
             MeshSpec::Creature { radius, subdivisions } => {
                 self.surface_only(&field, l.kind)?;
@@ -221,84 +129,20 @@ impl Builder {
                 if *subdivisions > 7 {
                     return Err(self.err(format!("{field}.subdivisions"), "at most 7 (327,680 triangles)"));
                 }
-                LayerMesh::Surface(mesh::bodies::creature(radius * len, *subdivisions))
+                BuiltMesh::of(LayerMesh::Surface(mesh::bodies::creature(radius * len, *subdivisions)))
             }
             MeshSpec::Gltf { path, mesh: name } => {
                 let (m, a) = self.gltf_body(&field, path, name.as_deref(), l.kind)?;
-                asset_uv = a
+                let asset_uv = a
                     .corner_uv
                     .as_ref()
                     .map(|(c, _)| super::character::first_corner_per_vertex(&m.faces, c, m.rest.len()));
-                asset = Some(a);
-                LayerMesh::Surface(m)
+                BuiltMesh { asset: Some(a), asset_uv, ..BuiltMesh::of(LayerMesh::Surface(m)) }
             }
-            MeshSpec::Offset { layer, distance, region, refine: Some(refine) } => {
-                self.surface_only(&field, l.kind)?;
-                if !distance.is_finite() {
-                    return Err(self.err(format!("{field}.distance"), "must be finite"));
-                }
-                let bi = *index
-                    .get(layer)
-                    .filter(|&&i| i < earlier.len())
-                    .ok_or_else(|| self.err(format!("{field}.layer"), format!("no earlier layer named \"{layer}\"")))?;
-                let base = &earlier[bi];
-                let LayerMesh::Surface(bm) = &base.mesh else {
-                    return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
-                };
-                let keep = match region {
-                    Some(r) => self.region(&format!("{field}.region"), r, bm, base, len)?,
-                    None => vec![true; bm.faces.len()],
-                };
-                let r = self.refined(&field, base, bi, &keep, distance * len, refine, lambda, len, l.kind)?;
-                let mut m = r.mesh;
-                asset_uv = super::character::interpolated_asset_uv(base, &r.parents);
-                (embedding, parents) = (r.embedding, Some(r.parents));
-                m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
-                LayerMesh::Surface(m)
-            }
-            MeshSpec::Offset { layer, distance, region, refine: None } => {
-                self.surface_only(&field, l.kind)?;
-                if !distance.is_finite() {
-                    return Err(self.err(format!("{field}.distance"), "must be finite"));
-                }
-                let base = index
-                    .get(layer)
-                    .and_then(|&i| earlier.get(i))
-                    .ok_or_else(|| self.err(format!("{field}.layer"), format!("no earlier layer named \"{layer}\"")))?;
-                let LayerMesh::Surface(m) = &base.mesh else {
-                    return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
-                };
-                // A glTF body's material space is its UVs per face corner (islands overlap, seams
-                // split): a shell or a UV region on it goes through `refine`.
-                let uv_region = matches!(region, Some(RegionSpec::Uv { .. } | RegionSpec::Mask { .. }));
-                if base.asset.is_some() && (l.kind == LayerKind::Shell || uv_region) {
-                    return Err(self.err(
-                        &field,
-                        format!(
-                            "an Offset of the glTF body \"{layer}\" takes its material space from the UVs of each \
-                             face corner: give it `refine` (Levels(0) keeps the body's faces, on its smooth surface)"
-                        ),
-                    ));
-                }
-                let mut m = mesh::bodies::offset(m, distance * len);
-                groups = base.groups.clone();
-                // (a shell offset vertex for vertex keeps its base's asset UVs)
-                asset_uv = region.is_none().then(|| base.asset_uv.clone()).flatten();
-                if let Some(r) = region {
-                    let keep = self.region(&format!("{field}.region"), r, &m, base, len)?;
-                    m = mesh::select::faces_within(&m, &keep);
-                    if m.faces.is_empty() {
-                        let message = format!("selects no face of \"{layer}\"");
-                        return Err(self.err(format!("{field}.region"), message));
-                    }
-                    if let Some(g) = &mut groups {
-                        g.of_face = g.of_face.iter().zip(&keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
-                    }
-                }
-                m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
-                LayerMesh::Surface(m)
-            }
+            MeshSpec::Offset { refine: Some(_), .. } => self.refined_offset(&cx)?,
+            MeshSpec::Offset { refine: None, .. } => self.offset_mesh(&cx)?,
         };
+        let BuiltMesh { mesh, shared, embedding, .. } = &mut built;
         self.charge_memory(&field, l.kind, mesh.rest().len() as u64)?;
         // A kinematic copy of an embedded layer (an Offset of it, not refined again) is embedded
         // too, farther along the normal; shells offset from it are free.
@@ -306,18 +150,18 @@ impl Builder {
             if let MeshSpec::Offset { layer, distance, refine: None, region: None } = &l.mesh {
                 let base = index.get(layer).and_then(|&i| earlier.get(i));
                 if let Some(e) = base.and_then(|b| b.embedding.as_ref()) {
-                    embedding =
+                    *embedding =
                         Some(super::built::BuiltEmbedding { distance: e.distance + distance * len, ..e.clone() });
                 }
             }
         }
         if shared.is_empty() {
-            shared = vec![None; mesh.rest().len()];
+            *shared = vec![None; mesh.rest().len()];
         }
-        if let LayerMesh::Surface(m) = &mesh {
+        if let LayerMesh::Surface(m) = &*mesh {
             mesh::check_surface(m).map_err(|e| self.err(&field, e.to_string()))?;
         }
-        match &mut mesh {
+        match mesh {
             LayerMesh::Surface(m) => m.rest.iter_mut().for_each(|p| *p += offset),
             LayerMesh::Volume(m) => m.rest.iter_mut().for_each(|p| *p += offset),
         }
@@ -327,7 +171,239 @@ impl Builder {
                 *s = owner;
             }
         }
-        Ok(BuiltMesh { mesh, shared, slab, groups, asset, embedding, parents, asset_uv })
+        Ok(built)
+    }
+
+    fn positive(&self, m: &MeshAt, v: f64, what: &str) -> Result<(), SceneError> {
+        if v > 0.0 && v.is_finite() {
+            Ok(())
+        } else {
+            Err(self.err(format!("{}.{what}", m.field), format!("must be > 0 (got {v})")))
+        }
+    }
+
+    /// The earlier slab layer `name` a TetOn or SurfaceOf mesh builds on, and its grid.
+    fn base_slab(&self, m: &MeshAt, name: &str) -> Result<(usize, SlabGrid), SceneError> {
+        let field = &m.field;
+        let i = *m.index.get(name).ok_or_else(|| {
+            self.err(
+                format!("{field}.layer"),
+                format!("no earlier layer named \"{name}\" (layers are listed bottom to top)"),
+            )
+        })?;
+        let slab = m.earlier.get(i).and_then(|b| b.slab).ok_or_else(|| {
+            self.err(format!("{field}.layer"), format!("\"{name}\" is not a TetSlab or TetOn volume layer"))
+        })?;
+        Ok((i, slab))
+    }
+
+    /// A TetSlab volume layer (and the slab grid the layers on it read).
+    fn tet_slab(&self, cx: &MeshAt) -> Result<BuiltMesh, SceneError> {
+        let MeshAt { field, l, len, offset, .. } = cx;
+        let (field, len, offset) = (field.clone(), *len, *offset);
+        let positive = |v: f64, what: &str| self.positive(cx, v, what);
+        let MeshSpec::TetSlab { size, cells, depth, elements, top, grading, coarsen } = &l.mesh else {
+            unreachable!("tet_slab builds its own spec")
+        };
+        if l.kind != LayerKind::Volume {
+            return Err(self.err(&field, "a TetSlab mesh belongs to a volume layer"));
+        }
+        positive(size.0, "size")?;
+        positive(size.1, "size")?;
+        positive(*depth, "depth")?;
+        if cells.0 == 0 || cells.1 == 0 {
+            return Err(self.err(format!("{field}.cells"), "needs at least one cell in each direction"));
+        }
+        if *elements == 0 {
+            return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
+        }
+        let counts = [cells.0 as u64 + 1, cells.1 as u64 + 1, *elements as u64 + 1];
+        self.vertex_budget(&format!("{field}.cells"), counts, l.kind)?;
+        let size = DVec2::new(size.0, size.1) * len;
+        positive(*grading, "grading")?;
+        let coarsen = match coarsen {
+            None => None,
+            Some(c) => {
+                positive(c.every, "coarsen.every")?;
+                let from = c.from.unwrap_or(*top);
+                if !from.is_finite() {
+                    return Err(self.err(format!("{field}.coarsen.from"), "must be finite"));
+                }
+                Some(mesh::Coarsening { every: c.every * len, from: from * len })
+            }
+        };
+        let levels = [(depth * len, *elements, *grading)];
+        let (m, _, planes) = mesh::tet_slab(size, *cells, top * len, &levels, coarsen)
+            .map_err(|e| self.err(format!("{field}.coarsen.every"), halves_twice(e, len)))?;
+        let slab = Some(SlabGrid {
+            size,
+            cells: *cells,
+            origin: offset,
+            top: top * len + offset.z,
+            top_cells: *planes.cells.last().unwrap(),
+            top_first: *planes.first.last().unwrap(),
+            coarsen,
+        });
+        Ok(BuiltMesh { slab, ..BuiltMesh::of(LayerMesh::Volume(m)) })
+    }
+
+    /// An OBJ surface (with its groups).
+    fn obj_mesh(&self, cx: &MeshAt) -> Result<BuiltMesh, SceneError> {
+        let MeshAt { field, l, len, .. } = cx;
+        let (field, len) = (field.clone(), *len);
+        let MeshSpec::Obj { path } = &l.mesh else { unreachable!("obj_mesh builds its own spec") };
+        if l.kind == LayerKind::Volume {
+            return Err(self.err(&field, "OBJ meshes are surfaces: use them for shell or kinematic layers"));
+        }
+        let full = self.dir.join(path);
+        if let Some(problem) = not_a_file(&full) {
+            return Err(SceneError::at_field(&full, &field, format!("mesh file {problem}")));
+        }
+        let (m, g) =
+            mesh::obj::load_groups(&full, len).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
+        let groups = Some(g);
+        mesh::check_surface(&m).map_err(|e| SceneError::at_field(&full, &field, e.to_string()))?;
+        // A shell's material space (kernels, property and wrinkle maps) falls back to the
+        // rest xy without `vt`: right for a flat sheet, a distortion of a curved one.
+        let io = |e: std::io::Error| SceneError::at_field(&full, &field, e.to_string());
+        let (lo, hi) = m.rest.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let curved = hi.z - lo.z > 1e-9 * (hi - lo).length();
+        if l.kind == LayerKind::Shell && curved && !mesh::obj::has_texture_coordinates(&full).map_err(io)? {
+            return Err(SceneError::at_field(
+                &full,
+                &field,
+                "a curved shell needs texture coordinates (`vt`): they are its material space; \
+                 without them it would be the rest x and y, which distort a curved surface",
+            ));
+        }
+        Ok(BuiltMesh { groups, ..BuiltMesh::of(LayerMesh::Surface(m)) })
+    }
+
+    /// A TetOn volume layer stacked on an earlier slab (its bottom plane is the base's top).
+    fn tet_on(&self, cx: &MeshAt) -> Result<BuiltMesh, SceneError> {
+        let MeshAt { field, l, len, .. } = cx;
+        let (field, len) = (field.clone(), *len);
+        let positive = |v: f64, what: &str| self.positive(cx, v, what);
+        let base_slab = |name: &str| self.base_slab(cx, name);
+        let MeshSpec::TetOn { layer, depth, elements, grading } = &l.mesh else {
+            unreachable!("tet_on builds its own spec")
+        };
+        if l.kind != LayerKind::Volume {
+            return Err(self.err(&field, "a TetOn mesh belongs to a volume layer"));
+        }
+        positive(*depth, "depth")?;
+        if *elements == 0 {
+            return Err(self.err(format!("{field}.elements"), "zero elements through the thickness"));
+        }
+        let (bi, base) = base_slab(layer)?;
+        let counts = [base.cells.0 as u64 + 1, base.cells.1 as u64 + 1, *elements as u64 + 1];
+        self.vertex_budget(&format!("{field}.elements"), counts, l.kind)?;
+        let new_top = base.top - base.origin.z + depth * len;
+        positive(*grading, "grading")?;
+        let levels = [(depth * len, *elements, *grading)];
+        let (m, _, planes) = mesh::tet_slab(base.size, base.cells, new_top, &levels, base.coarsen)
+            .map_err(|e| self.err(format!("{field}.elements"), halves_twice(e, len)))?;
+        if planes.cells[0] != base.top_cells {
+            return Err(self.err(
+                format!("{field}.depth"),
+                format!(
+                    "the bottom plane's grid {:?} differs from \"{layer}\"'s top grid {:?} (a plane on a \
+                     coarsening boundary: move it off by a little)",
+                    planes.cells[0], base.top_cells
+                ),
+            ));
+        }
+        let slab = Some(SlabGrid {
+            top: new_top + base.origin.z,
+            top_cells: *planes.cells.last().unwrap(),
+            top_first: *planes.first.last().unwrap(),
+            ..base
+        });
+        // The bottom plane is the base's top plane.
+        let plane = base.top_len();
+        let shared: Vec<_> =
+            (0..m.rest.len()).map(|v| (v < plane).then(|| (bi, (base.top_first + v) as u32))).collect();
+        Ok(BuiltMesh { slab, shared, ..BuiltMesh::of(LayerMesh::Volume(m)) })
+    }
+
+    /// An Offset with `refine`: the base's limit surface, refined and embedded in it.
+    fn refined_offset(&self, cx: &MeshAt) -> Result<BuiltMesh, SceneError> {
+        let MeshAt { field, l, len, offset, earlier, index, lambda } = cx;
+        let (field, len, offset, lambda) = (field.clone(), *len, *offset, *lambda);
+        let MeshSpec::Offset { layer, distance, region, refine: Some(refine) } = &l.mesh else {
+            unreachable!("refined_offset builds its own spec")
+        };
+        self.surface_only(&field, l.kind)?;
+        if !distance.is_finite() {
+            return Err(self.err(format!("{field}.distance"), "must be finite"));
+        }
+        let bi = *index
+            .get(layer)
+            .filter(|&&i| i < earlier.len())
+            .ok_or_else(|| self.err(format!("{field}.layer"), format!("no earlier layer named \"{layer}\"")))?;
+        let base = &earlier[bi];
+        let LayerMesh::Surface(bm) = &base.mesh else {
+            return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
+        };
+        let keep = match region {
+            Some(r) => self.region(&format!("{field}.region"), r, bm, base, len)?,
+            None => vec![true; bm.faces.len()],
+        };
+        let r = self.refined(&field, base, bi, &keep, distance * len, refine, lambda, len, l.kind)?;
+        let mut m = r.mesh;
+        let asset_uv = super::character::interpolated_asset_uv(base, &r.parents);
+        let (embedding, parents) = (r.embedding, Some(r.parents));
+        m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
+        Ok(BuiltMesh { asset_uv, embedding, parents, ..BuiltMesh::of(LayerMesh::Surface(m)) })
+    }
+
+    /// An Offset without `refine`: the base moved along its normals, vertex for vertex (a region of it).
+    fn offset_mesh(&self, cx: &MeshAt) -> Result<BuiltMesh, SceneError> {
+        let MeshAt { field, l, len, offset, earlier, index, .. } = cx;
+        let (field, len, offset) = (field.clone(), *len, *offset);
+        let MeshSpec::Offset { layer, distance, region, refine: None } = &l.mesh else {
+            unreachable!("offset_mesh builds its own spec")
+        };
+        self.surface_only(&field, l.kind)?;
+        if !distance.is_finite() {
+            return Err(self.err(format!("{field}.distance"), "must be finite"));
+        }
+        let base = index
+            .get(layer)
+            .and_then(|&i| earlier.get(i))
+            .ok_or_else(|| self.err(format!("{field}.layer"), format!("no earlier layer named \"{layer}\"")))?;
+        let LayerMesh::Surface(m) = &base.mesh else {
+            return Err(self.err(format!("{field}.layer"), format!("\"{layer}\" is not a surface")));
+        };
+        // A glTF body's material space is its UVs per face corner (islands overlap, seams
+        // split): a shell or a UV region on it goes through `refine`.
+        let uv_region = matches!(region, Some(RegionSpec::Uv { .. } | RegionSpec::Mask { .. }));
+        if base.asset.is_some() && (l.kind == LayerKind::Shell || uv_region) {
+            return Err(self.err(
+                &field,
+                format!(
+                    "an Offset of the glTF body \"{layer}\" takes its material space from the UVs of each \
+                     face corner: give it `refine` (Levels(0) keeps the body's faces, on its smooth surface)"
+                ),
+            ));
+        }
+        let mut m = mesh::bodies::offset(m, distance * len);
+        let mut groups = base.groups.clone();
+        // (a shell offset vertex for vertex keeps its base's asset UVs)
+        let asset_uv = region.is_none().then(|| base.asset_uv.clone()).flatten();
+        if let Some(r) = region {
+            let keep = self.region(&format!("{field}.region"), r, &m, base, len)?;
+            m = mesh::select::faces_within(&m, &keep);
+            if m.faces.is_empty() {
+                let message = format!("selects no face of \"{layer}\"");
+                return Err(self.err(format!("{field}.region"), message));
+            }
+            if let Some(g) = &mut groups {
+                g.of_face = g.of_face.iter().zip(&keep).filter(|(_, k)| **k).map(|(f, _)| *f).collect();
+            }
+        }
+        m.rest.iter_mut().for_each(|p| *p -= offset); // the base is already placed
+        Ok(BuiltMesh { groups, asset_uv, ..BuiltMesh::of(LayerMesh::Surface(m)) })
     }
 
     fn surface_only(&self, field: &str, kind: LayerKind) -> Result<(), SceneError> {
