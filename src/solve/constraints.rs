@@ -62,7 +62,11 @@ impl KernelRows {
     }
 }
 
-/// Every kernel row of a patch, and the Jacobian's sparsity (rows 3 k + a, vertex, coordinate).
+/// Every kernel row of a patch, and the Jacobian's sparsity (rows 3 k + a, vertex, coordinate):
+/// the solver's equality constraints, the J of its KKT system (`kkt`). They stay the only
+/// constraint kind: contact enters beside them as an energy term (an IPC barrier is a registered
+/// `element::Term` whose elements the broad phase rebuilds), with its step bound in the line
+/// search.
 #[derive(Clone, Debug, Default)]
 pub struct Constraints {
     pub kernels: Vec<KernelRows>,
