@@ -132,8 +132,8 @@ impl Pattern {
         p.maps = terms
             .iter()
             .map(|t| {
-                let mut map = Vec::new();
-                t.stencils(&mut |v| match t.coupling() {
+                let (mut map, coupling) = (Vec::new(), t.coupling());
+                t.stencils(&mut |v| match coupling {
                     Coupling::Full => map.extend(p.element_map(v)),
                     Coupling::PerCoordinate => map.extend(p.stencil_map(v)),
                 });

@@ -31,8 +31,7 @@ impl Term for QuadraticBending {
             let (vs, ws) = self.stencil(i);
             let r = self.k[i] * self.laplacian(i, x);
             for (&v, &w) in vs.iter().zip(ws) {
-                let gl = (w * r).to_array();
-                g[v as usize] += DVec3::new(gl[0], gl[1], gl[2]);
+                g[v as usize] += w * r;
             }
         }
     }
