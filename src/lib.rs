@@ -9,6 +9,7 @@
 
 #![warn(unreachable_pub)]
 
+pub mod contact;
 pub mod coupling;
 pub mod mesh;
 pub mod model;

@@ -1,0 +1,52 @@
+//! The broad phase: pairs whose primitives' bounding boxes, grown by a radius, overlap, from
+//! parry's BVH over the triangles and over the edges. At one state (the pairs that may be
+//! active) or over a step from one state to another (the pairs CCD must bound).
+
+use glam::DVec3;
+use parry3d_f64::bounding_volume::Aabb;
+use parry3d_f64::math::Vector;
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy};
+use rayon::prelude::*;
+
+use super::pair::Pair;
+use super::surface::Surface;
+
+/// The box of `vertices` at `x` (and at `x1`, over a step), grown by `r`.
+fn aabb(vertices: &[u32], x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Aabb {
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for &v in vertices {
+        for p in std::iter::once(x[v as usize]).chain(x1.map(|y| y[v as usize])) {
+            (lo, hi) = (lo.min(p), hi.max(p));
+        }
+    }
+    let (lo, hi) = (lo - DVec3::splat(r), hi + DVec3::splat(r));
+    Aabb::new(Vector::new(lo.x, lo.y, lo.z), Vector::new(hi.x, hi.y, hi.z))
+}
+
+/// Every admitted pair (`Surface::admits`) whose boxes, at `x` or swept from `x` to `x1`, come
+/// within `r` of each other: point-triangle pairs first, then edge-edge, each in index order.
+pub fn candidates(s: &Surface, x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Vec<Pair> {
+    if s.is_empty() {
+        return Vec::new();
+    }
+    let tri_boxes: Vec<Aabb> = s.triangles.par_iter().map(|t| aabb(t, x, x1, r)).collect();
+    let tris = Bvh::from_leaves(BvhBuildStrategy::default(), &tri_boxes);
+    let mut pairs: Vec<Pair> = (0..s.points.len())
+        .into_par_iter()
+        .flat_map_iter(|p| {
+            let query = aabb(&[s.points[p]], x, x1, 0.0);
+            let mut found: Vec<u32> = tris.intersect_aabb(&query).collect();
+            found.sort_unstable();
+            found.into_iter().filter_map(move |t| s.point_triangle(p, t as usize))
+        })
+        .collect();
+    // (each edge box grown by r / 2: two boxes within r of each other overlap)
+    let edge_boxes: Vec<Aabb> = s.edges.par_iter().map(|e| aabb(e, x, x1, 0.5 * r)).collect();
+    let edges = Bvh::from_leaves(BvhBuildStrategy::default(), &edge_boxes);
+    pairs.par_extend((0..s.edges.len()).into_par_iter().flat_map_iter(|i| {
+        let mut found: Vec<u32> = edges.intersect_aabb(&edge_boxes[i]).filter(|&j| j as usize > i).collect();
+        found.sort_unstable();
+        found.into_iter().filter_map(move |j| s.edge_edge(i, j as usize))
+    }));
+    pairs
+}

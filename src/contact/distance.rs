@@ -1,0 +1,161 @@
+//! Unsigned distances between the primitives of a contact pair (IPC: Li et al. 2020, sec. 4):
+//! a point and a triangle, or two edges. The squared distance is piecewise: by the pair's
+//! closest features it is a point-point, point-line, point-plane or line-line distance. The
+//! feature is chosen in f64 (`DistanceType::of`); the formula for that feature is then
+//! evaluated in any number type (`squared`), so that second-order dual numbers give its exact
+//! gradient and Hessian. The squared distance is C1 across the features' boundaries.
+
+use num_dual::DualNum;
+
+use crate::physics::dual::{cross3, dot3, sub3};
+
+/// A pair's primitives: four points, `[p, t0, t1, t2]` (point-triangle) or `[a0, a1, b0, b1]`
+/// (edge-edge).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Primitives {
+    PointTriangle,
+    EdgeEdge,
+}
+
+/// Which features of the pair are closest; indices into its four points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DistanceType {
+    /// Two points.
+    PointPoint(usize, usize),
+    /// Point, then the line through two points.
+    PointEdge(usize, usize, usize),
+    /// Point 0 and the plane of points 1, 2, 3.
+    PointPlane,
+    /// The lines through 0-1 and 2-3.
+    LineLine,
+}
+
+fn length2(a: [f64; 3]) -> f64 {
+    dot3(a, a)
+}
+
+/// The parameter of the closest point of the line a-b to p, and its squared distance, when the
+/// closest point lies strictly inside the segment.
+fn inside_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> Option<f64> {
+    let e = sub3(b, a);
+    let l2 = length2(e);
+    if l2 <= 0.0 {
+        return None;
+    }
+    let t = dot3(sub3(p, a), e) / l2;
+    (t > 0.0 && t < 1.0).then(|| length2(cross3(sub3(a, p), sub3(b, p))) / l2)
+}
+
+impl DistanceType {
+    /// The closest features of the pair at positions `x`: the candidate with the least
+    /// squared distance among the vertex pairs, the vertex-edge pairs whose foot lies inside
+    /// the edge, and the face (point-triangle: the foot inside the triangle) or the two edges'
+    /// interiors (edge-edge, not parallel).
+    pub fn of(kind: Primitives, x: &[[f64; 3]; 4]) -> DistanceType {
+        let mut best = (f64::INFINITY, DistanceType::PointPoint(0, 1));
+        let mut offer = |d: f64, t: DistanceType| {
+            if d < best.0 {
+                best = (d, t);
+            }
+        };
+        let pp = |i: usize, j: usize| length2(sub3(x[i], x[j]));
+        match kind {
+            Primitives::PointTriangle => {
+                for j in 1..4 {
+                    offer(pp(0, j), DistanceType::PointPoint(0, j));
+                }
+                for (a, b) in [(1, 2), (2, 3), (3, 1)] {
+                    if let Some(d) = inside_segment(x[0], x[a], x[b]) {
+                        offer(d, DistanceType::PointEdge(0, a, b));
+                    }
+                }
+                if let Some(d) = inside_triangle(x) {
+                    offer(d, DistanceType::PointPlane);
+                }
+            }
+            Primitives::EdgeEdge => {
+                for (i, j) in [(0, 2), (0, 3), (1, 2), (1, 3)] {
+                    offer(pp(i, j), DistanceType::PointPoint(i, j));
+                }
+                for (p, a, b) in [(0, 2, 3), (1, 2, 3), (2, 0, 1), (3, 0, 1)] {
+                    if let Some(d) = inside_segment(x[p], x[a], x[b]) {
+                        offer(d, DistanceType::PointEdge(p, a, b));
+                    }
+                }
+                if let Some(d) = inside_segments(x) {
+                    offer(d, DistanceType::LineLine);
+                }
+            }
+        }
+        best.1
+    }
+}
+
+/// The squared distance of point 0 to the plane of 1, 2, 3 when its foot lies strictly inside
+/// the triangle (barycentric coordinates from the normal equations).
+fn inside_triangle(x: &[[f64; 3]; 4]) -> Option<f64> {
+    let (e1, e2, r) = (sub3(x[2], x[1]), sub3(x[3], x[1]), sub3(x[0], x[1]));
+    let (a, b, c) = (dot3(e1, e1), dot3(e1, e2), dot3(e2, e2));
+    let det = a * c - b * b;
+    if det <= 1e-30 * a * c {
+        return None;
+    }
+    let (d, e) = (dot3(r, e1), dot3(r, e2));
+    let (u, v) = ((c * d - b * e) / det, (a * e - b * d) / det);
+    if u <= 0.0 || v <= 0.0 || u + v >= 1.0 {
+        return None;
+    }
+    let n = cross3(e1, e2);
+    let h = dot3(r, n);
+    Some(h * h / length2(n))
+}
+
+/// The squared distance of the lines 0-1 and 2-3 when their closest points lie strictly inside
+/// both segments (None for parallel edges: the vertex-edge candidates cover them).
+fn inside_segments(x: &[[f64; 3]; 4]) -> Option<f64> {
+    let (ea, eb, r) = (sub3(x[1], x[0]), sub3(x[3], x[2]), sub3(x[0], x[2]));
+    let (a, b, c) = (dot3(ea, ea), dot3(ea, eb), dot3(eb, eb));
+    let det = a * c - b * b;
+    // (below this the edges are parallel to round-off; the line-line formula divides by it)
+    if det <= 1e-20 * a * c {
+        return None;
+    }
+    let (d, e) = (dot3(ea, r), dot3(eb, r));
+    let (s, t) = ((b * e - c * d) / det, (a * e - b * d) / det);
+    if s <= 0.0 || s >= 1.0 || t <= 0.0 || t >= 1.0 {
+        return None;
+    }
+    let n = cross3(ea, eb);
+    let h = dot3(r, n);
+    Some(h * h / length2(n))
+}
+
+/// The squared distance by the formula of the features `t`, in any number type.
+pub fn squared<D: DualNum<Primitive = f64> + Copy>(t: DistanceType, x: &[[D; 3]; 4]) -> D {
+    match t {
+        DistanceType::PointPoint(i, j) => {
+            let d = sub3(x[i], x[j]);
+            dot3(d, d)
+        }
+        DistanceType::PointEdge(p, a, b) => {
+            let c = cross3(sub3(x[a], x[p]), sub3(x[b], x[p]));
+            let e = sub3(x[b], x[a]);
+            dot3(c, c) / dot3(e, e)
+        }
+        DistanceType::PointPlane => {
+            let n = cross3(sub3(x[2], x[1]), sub3(x[3], x[1]));
+            let h = dot3(sub3(x[0], x[1]), n);
+            h * h / dot3(n, n)
+        }
+        DistanceType::LineLine => {
+            let n = cross3(sub3(x[1], x[0]), sub3(x[3], x[2]));
+            let h = dot3(sub3(x[0], x[2]), n);
+            h * h / dot3(n, n)
+        }
+    }
+}
+
+/// The pair's squared distance at f64 positions.
+pub fn squared_distance(kind: Primitives, x: &[[f64; 3]; 4]) -> f64 {
+    squared(DistanceType::of(kind, x), x)
+}

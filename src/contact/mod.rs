@@ -1,0 +1,176 @@
+//! Barrier contact with a guarantee (IPC: Li et al. 2020; codimensional IPC with thickness:
+//! Li et al. 2021): unsigned point-triangle and edge-edge distances (`distance`), a log barrier
+//! on them offset by the skin's thickness (`barrier`), each pair's energy and exact derivatives
+//! (`pair`), a conservative continuous collision test that bounds every step (`ccd`), and the
+//! broad phase over a patch's surface (`surface`, `broad`).
+//!
+//! The solver sees contact as one more energy term (`solve::elements`, `ContactPairs`): the
+//! pairs near the state, scaled by the barrier stiffness. `ContactState` is what a patch keeps
+//! between iterations and frames: its surface, the stiffness and the frame's record.
+
+pub mod barrier;
+pub mod broad;
+pub mod ccd;
+pub mod distance;
+pub mod pair;
+pub mod surface;
+
+use glam::DVec3;
+
+pub use barrier::Barrier;
+pub use distance::{DistanceType, Primitives};
+pub use pair::Pair;
+pub use surface::Surface;
+
+/// The pairs a solve evaluates, and the barrier stiffness kappa (J/m^4) they are scaled by.
+#[derive(Clone, Debug, Default)]
+pub struct ContactPairs {
+    pub pairs: Vec<Pair>,
+    pub stiffness: f64,
+}
+
+impl ContactPairs {
+    pub fn is_empty(&self) -> bool {
+        self.pairs.is_empty()
+    }
+}
+
+/// Positions of a pair's four vertices.
+#[inline]
+pub fn gather(x: &[DVec3], v: &[u32; 4]) -> [[f64; 3]; 4] {
+    v.map(|i| x[i as usize].to_array())
+}
+
+/// What a patch with contact keeps between iterations and frames.
+#[derive(Clone, Debug, Default)]
+pub struct ContactState {
+    pub surface: Surface,
+    /// Extra reach of the pair list beyond the barrier's (m): pairs that may become active
+    /// within a step stay in the pattern, so it is re-analysed less often.
+    pub margin: f64,
+    /// kappa; 0 until pairs first become active (`stiffness`).
+    pub stiffness: f64,
+    /// The stiffness's floor and ceiling, set with it.
+    pub stiffness_min: f64,
+    pub stiffness_max: f64,
+    /// The smallest z = d^2 - xi^2 at the last iterate (IPC's stiffness update).
+    pub last_min_z: f64,
+    /// This frame's record.
+    pub report: ContactReport,
+}
+
+/// Per frame: what contact did (the report's `contact` object).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ContactReport {
+    /// Pairs within the barrier's reach at the end of the frame.
+    pub active_pairs: usize,
+    /// The largest number of active pairs at any iterate.
+    pub peak_pairs: usize,
+    /// The smallest distance over the thickness offset at any iterate (> 1: never closer than
+    /// the thickness; infinite when no pair came within the list's reach).
+    pub min_distance_ratio: f64,
+    /// The barrier stiffness at the end of the frame (J/m^4).
+    pub stiffness: f64,
+    /// Line searches whose first step the continuous collision test shortened.
+    pub ccd_cuts: u32,
+    /// Broad phases run (one per Newton step, and at the frame's start).
+    pub broad_phases: u32,
+    /// Times active pairs fell outside the sparse pattern: a new pattern and symbolic
+    /// analysis. `remaps`: times the pair list changed inside the pattern (scatter maps only).
+    pub reanalyses: u32,
+    pub remaps: u32,
+    /// The contact energy at the end of the frame (J).
+    pub energy: f64,
+}
+
+impl ContactState {
+    pub fn new(surface: Surface, margin: f64) -> ContactState {
+        ContactState { surface, margin, ..Default::default() }
+    }
+
+    /// The reach of the pair list: offset + d_hat + margin.
+    pub fn list_reach(&self) -> f64 {
+        self.surface.barrier.offset + self.surface.barrier.reach + self.margin
+    }
+
+    /// Pairs near `x` (or near the step from `x` to `x1`), counted as a broad phase.
+    pub fn pairs_near(&mut self, x: &[DVec3], x1: Option<&[DVec3]>) -> Vec<Pair> {
+        self.report.broad_phases += 1;
+        broad::candidates(&self.surface, x, x1, self.list_reach())
+    }
+
+    /// Starts a frame's record (the stiffness carries over).
+    pub fn begin_frame(&mut self) {
+        self.report = ContactReport { min_distance_ratio: f64::INFINITY, ..Default::default() };
+    }
+
+    /// Records the iterate `x` with the pairs `pairs`: active count and the smallest distance
+    /// ratio; returns the smallest z = d^2 - xi^2 over them (infinite when none is active).
+    pub fn observe(&mut self, pairs: &[Pair], x: &[DVec3]) -> f64 {
+        let (mut active, mut min_z) = (0, f64::INFINITY);
+        for p in pairs {
+            let d2 = p.squared_distance(&gather(x, &p.v));
+            if p.barrier.active(d2) {
+                active += 1;
+            }
+            min_z = min_z.min(p.barrier.z(d2));
+            let ratio = d2.sqrt() / p.barrier.offset;
+            self.report.min_distance_ratio = self.report.min_distance_ratio.min(ratio);
+        }
+        self.report.active_pairs = active;
+        self.report.peak_pairs = self.report.peak_pairs.max(active);
+        min_z
+    }
+
+    /// IPC's stiffness rule (Li et al. 2020, sec. 4.3 and supplement): the first time pairs are
+    /// active, kappa balances the elastic gradient `ge` against the barrier's at unit stiffness
+    /// `gb` (least squares), within [kappa_min, 100 kappa_min]; kappa_min gives the barrier at
+    /// half its reach the curvature `mean_diagonal` of the elastic Hessian. Later, kappa doubles
+    /// (up to the ceiling) while the closest pair keeps closing within a small fraction of the
+    /// reach. Returns whether kappa changed.
+    pub fn update_stiffness(&mut self, min_z: f64, mean_diagonal: f64, ge: &[f64], gb: &[f64]) -> bool {
+        let b = self.surface.barrier;
+        let zh = b.z_hat();
+        let changed = if self.stiffness == 0.0 {
+            if !min_z.is_finite() || min_z >= zh {
+                return false;
+            }
+            let z0 = 0.5 * zh;
+            let d0_squared = z0 + b.offset * b.offset;
+            self.stiffness_min = mean_diagonal / (4.0 * d0_squared * b.curvature(z0));
+            self.stiffness_max = 100.0 * self.stiffness_min;
+            let gg: f64 = gb.iter().map(|g| g * g).sum();
+            let balance = if gg > 0.0 { -ge.iter().zip(gb).map(|(a, b)| a * b).sum::<f64>() / gg } else { 0.0 };
+            self.stiffness = balance.clamp(self.stiffness_min, self.stiffness_max);
+            true
+        } else {
+            let small = 1e-3 * zh;
+            let closing = min_z < small && self.last_min_z < small && min_z < self.last_min_z;
+            let doubled = (2.0 * self.stiffness).min(self.stiffness_max);
+            let changed = closing && doubled > self.stiffness;
+            if changed {
+                self.stiffness = doubled;
+            }
+            changed
+        };
+        self.last_min_z = min_z;
+        changed
+    }
+
+    /// The largest fraction of the step `dx` (per vertex, from `x`) that no pair of `pairs`
+    /// crosses (additive CCD); 1 when none comes within its offset.
+    pub fn step_bound(pairs: &[Pair], x: &[DVec3], dx: &[DVec3]) -> f64 {
+        use rayon::prelude::*;
+        let tois: Vec<f64> = pairs
+            .par_iter()
+            .map(|p| {
+                let (y, d) = (gather(x, &p.v), gather(dx, &p.v));
+                ccd::additive_toi(p.kind, &y, &d, p.barrier.offset, 1.0).unwrap_or(1.0)
+            })
+            .collect();
+        tois.into_iter().fold(1.0, f64::min)
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,104 @@
+//! A patch's contact surface: the triangles, edges and points of its shell layers that may
+//! touch, in packed vertex numbers, with what the pair rules need (layers, rest positions).
+
+use std::collections::BTreeSet;
+
+use glam::DVec3;
+
+use super::barrier::{mollifier_threshold, Barrier};
+use super::distance::{squared_distance, Primitives};
+use super::pair::Pair;
+
+/// The primitives of one patch that contact acts between.
+#[derive(Clone, Debug, Default)]
+pub struct Surface {
+    pub triangles: Vec<[u32; 3]>,
+    /// Every edge of the triangles once, `[lo, hi]`.
+    pub edges: Vec<[u32; 2]>,
+    /// Every vertex of the triangles once, ascending.
+    pub points: Vec<u32>,
+    /// The layer of each triangle, edge and point (the first triangle's that holds it).
+    tri_layer: Vec<u32>,
+    edge_layer: Vec<u32>,
+    point_layer: Vec<u32>,
+    /// Rest positions by packed vertex (the rule "near at rest is not contact").
+    rest: Vec<DVec3>,
+    /// Whether primitives of different layers may touch (false where kernels bind the layers).
+    pub across_layers: bool,
+    /// The barrier between two of its primitives.
+    pub barrier: Barrier,
+}
+
+impl Surface {
+    /// From each layer's triangles (packed numbers) and the packed rest positions.
+    pub fn new(layers: &[Vec<[u32; 3]>], rest: Vec<DVec3>, barrier: Barrier, across_layers: bool) -> Surface {
+        let mut s = Surface { rest, barrier, across_layers, ..Default::default() };
+        let mut edges = std::collections::BTreeMap::new();
+        let mut points = std::collections::BTreeMap::new();
+        for (l, tris) in layers.iter().enumerate() {
+            for t in tris {
+                s.triangles.push(*t);
+                s.tri_layer.push(l as u32);
+                for k in 0..3 {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    edges.entry([a.min(b), a.max(b)]).or_insert(l as u32);
+                    points.entry(t[k]).or_insert(l as u32);
+                }
+            }
+        }
+        (s.edges, s.edge_layer) = edges.into_iter().unzip();
+        (s.points, s.point_layer) = points.into_iter().unzip();
+        s
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    fn rest4(&self, v: &[u32; 4]) -> [[f64; 3]; 4] {
+        v.map(|i| self.rest[i as usize].to_array())
+    }
+
+    /// Whether two primitives of layers a and b, with vertices `v` (the pair's four), may form
+    /// a pair: they share no vertex, their layers may touch, and they are not already within
+    /// the barrier's reach at rest (neighbours on one surface, not two surfaces meeting).
+    fn admits(&self, kind: Primitives, v: &[u32; 4], a: u32, b: u32) -> bool {
+        let shared = match kind {
+            Primitives::PointTriangle => v[1..].contains(&v[0]),
+            Primitives::EdgeEdge => v[0] == v[2] || v[0] == v[3] || v[1] == v[2] || v[1] == v[3],
+        };
+        !shared && (a == b || self.across_layers) && !self.barrier.active(squared_distance(kind, &self.rest4(v)))
+    }
+
+    /// The point-triangle pair of point `p` (index into `points`) and triangle `t`, if admitted.
+    pub(super) fn point_triangle(&self, p: usize, t: usize) -> Option<Pair> {
+        let tri = self.triangles[t];
+        let v = [self.points[p], tri[0], tri[1], tri[2]];
+        let kind = Primitives::PointTriangle;
+        self.admits(kind, &v, self.point_layer[p], self.tri_layer[t]).then_some(Pair {
+            v,
+            kind,
+            barrier: self.barrier,
+            eps: 0.0,
+        })
+    }
+
+    /// The edge-edge pair of edges i and j, if admitted.
+    pub(super) fn edge_edge(&self, i: usize, j: usize) -> Option<Pair> {
+        let (a, b) = (self.edges[i], self.edges[j]);
+        let v = [a[0], a[1], b[0], b[1]];
+        let kind = Primitives::EdgeEdge;
+        let length = |e: [u32; 2]| (self.rest[e[0] as usize] - self.rest[e[1] as usize]).length();
+        self.admits(kind, &v, self.edge_layer[i], self.edge_layer[j]).then(|| Pair {
+            v,
+            kind,
+            barrier: self.barrier,
+            eps: mollifier_threshold(length(a), length(b)),
+        })
+    }
+
+    /// The packed vertices of the surface (a set, for tests and reports).
+    pub fn vertex_set(&self) -> BTreeSet<u32> {
+        self.points.iter().copied().collect()
+    }
+}
