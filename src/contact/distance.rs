@@ -91,8 +91,8 @@ impl DistanceType {
     }
 }
 
-/// The squared distance of point 0 to the plane of 1, 2, 3 when its foot lies strictly inside
-/// the triangle (barycentric coordinates from the normal equations).
+/// The squared distance of point 0 to its foot on the plane of 1, 2, 3 when the foot lies
+/// strictly inside the triangle (barycentric coordinates from the normal equations).
 fn inside_triangle(x: &[[f64; 3]; 4]) -> Option<f64> {
     let (e1, e2, r) = (sub3(x[2], x[1]), sub3(x[3], x[1]), sub3(x[0], x[1]));
     let (a, b, c) = (dot3(e1, e1), dot3(e1, e2), dot3(e2, e2));
@@ -105,19 +105,22 @@ fn inside_triangle(x: &[[f64; 3]; 4]) -> Option<f64> {
     if u <= 0.0 || v <= 0.0 || u + v >= 1.0 {
         return None;
     }
-    let n = cross3(e1, e2);
-    let h = dot3(r, n);
-    Some(h * h / length2(n))
+    // (the distance to the foot itself: a foot from an ill-conditioned solve is a point of the
+    // triangle, never closer than the truth)
+    let foot: [f64; 3] = std::array::from_fn(|k| x[1][k] + u * e1[k] + v * e2[k]);
+    Some(length2(sub3(x[0], foot)))
 }
 
-/// The squared distance of the lines 0-1 and 2-3 when their closest points lie strictly inside
-/// both segments (None for parallel edges: the vertex-edge candidates cover them).
+/// The squared distance of the lines 0-1 and 2-3 at their closest points, when those lie
+/// strictly inside both segments (None for parallel edges: the vertex-edge candidates cover them).
 fn inside_segments(x: &[[f64; 3]; 4]) -> Option<f64> {
     let (ea, eb, r) = (sub3(x[1], x[0]), sub3(x[3], x[2]), sub3(x[0], x[2]));
     let (a, b, c) = (dot3(ea, ea), dot3(ea, eb), dot3(eb, eb));
     let det = a * c - b * b;
-    // (below this the edges are parallel to round-off; the line-line formula divides by it)
-    if det <= 1e-20 * a * c {
+    // Within 1e-5 rad of parallel the line-line formula is ill-conditioned (two coplanar lines
+    // are at distance 0 wherever they are), and the vertex-edge candidates are within
+    // |e| 1e-5 of the truth: they decide.
+    if det <= 1e-10 * a * c {
         return None;
     }
     let (d, e) = (dot3(ea, r), dot3(eb, r));
@@ -125,9 +128,13 @@ fn inside_segments(x: &[[f64; 3]; 4]) -> Option<f64> {
     if s <= 0.0 || s >= 1.0 || t <= 0.0 || t >= 1.0 {
         return None;
     }
-    let n = cross3(ea, eb);
-    let h = dot3(r, n);
-    Some(h * h / length2(n))
+    // The distance between the two points found, not the lines': for nearly parallel edges the
+    // solve is ill-conditioned, and two coplanar lines are at distance 0 wherever s and t land.
+    // Points of the segments are never closer than the truth, so a wrong s, t loses to the
+    // vertex candidates.
+    let (p, q): ([f64; 3], [f64; 3]) =
+        (std::array::from_fn(|k| x[0][k] + s * ea[k]), std::array::from_fn(|k| x[2][k] + t * eb[k]));
+    Some(length2(sub3(p, q)))
 }
 
 /// The squared distance by the formula of the features `t`, in any number type.

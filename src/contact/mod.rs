@@ -20,7 +20,7 @@ use glam::DVec3;
 pub use barrier::Barrier;
 pub use distance::{DistanceType, Primitives};
 pub use pair::Pair;
-pub use surface::Surface;
+pub use surface::{Surface, SurfaceLayer};
 
 /// The pairs a solve evaluates, and the barrier stiffness kappa (J/m^4) they are scaled by.
 #[derive(Clone, Debug, Default)]
@@ -53,10 +53,13 @@ pub struct ContactState {
     /// The stiffness's floor and ceiling, set with it.
     pub stiffness_min: f64,
     pub stiffness_max: f64,
-    /// The smallest z = d^2 - xi^2 at the last iterate (IPC's stiffness update).
+    /// The smallest z / z_hat (z = d^2 - xi^2) of a pair at the last iterate (IPC's stiffness
+    /// update: below 1 a pair is active).
     pub last_min_z: f64,
     /// This frame's record.
     pub report: ContactReport,
+    /// The state at the end of the last solve: where prescribed vertices move from.
+    pub last: Vec<DVec3>,
 }
 
 /// Per frame: what contact did (the report's `contact` object).
@@ -73,6 +76,9 @@ pub struct ContactReport {
     pub stiffness: f64,
     /// Line searches whose first step the continuous collision test shortened.
     pub ccd_cuts: u32,
+    /// Solves the frame took: more than one where prescribed vertices (a body, a held edge)
+    /// could not move to their targets in one step without meeting the skin.
+    pub substeps: u32,
     /// Broad phases run (one per Newton step, and at the frame's start).
     pub broad_phases: u32,
     /// Times active pairs fell outside the sparse pattern: a new pattern and symbolic
@@ -88,15 +94,19 @@ impl ContactState {
         ContactState { surface, margin, ..Default::default() }
     }
 
-    /// The reach of the pair list: offset + d_hat + margin.
+    /// The reach of the pair list: the largest offset + d_hat + margin.
     pub fn list_reach(&self) -> f64 {
-        self.surface.barrier.offset + self.surface.barrier.reach + self.margin
+        self.surface.max_offset() + self.surface.reach + self.margin
     }
 
-    /// Pairs near `x` (or near the step from `x` to `x1`), counted as a broad phase.
-    pub fn pairs_near(&mut self, x: &[DVec3], x1: Option<&[DVec3]>) -> Vec<Pair> {
+    /// Pairs near `x` (or near the step from `x` to `x1`) with a free coordinate (two held
+    /// primitives have nothing to solve for: a clamp beside a held body part), counted as a
+    /// broad phase.
+    pub fn pairs_near(&mut self, x: &[DVec3], x1: Option<&[DVec3]>, fixed: &[[bool; 3]]) -> Vec<Pair> {
         self.report.broad_phases += 1;
-        broad::candidates(&self.surface, x, x1, self.list_reach())
+        let mut pairs = broad::candidates(&self.surface, x, x1, self.list_reach());
+        pairs.retain(|p| p.v.iter().any(|&v| fixed[v as usize] != [true; 3]));
+        pairs
     }
 
     /// Starts a frame's record (the stiffness carries over).
@@ -105,7 +115,7 @@ impl ContactState {
     }
 
     /// Records the iterate `x` with the pairs `pairs`: active count and the smallest distance
-    /// ratio; returns the smallest z = d^2 - xi^2 over them (infinite when none is active).
+    /// ratio; returns the smallest z / z_hat over them (infinite when there are none).
     pub fn observe(&mut self, pairs: &[Pair], x: &[DVec3]) -> f64 {
         let (mut active, mut min_z) = (0, f64::INFINITY);
         for p in pairs {
@@ -113,7 +123,7 @@ impl ContactState {
             if p.barrier.active(d2) {
                 active += 1;
             }
-            min_z = min_z.min(p.barrier.z(d2));
+            min_z = min_z.min(p.barrier.z(d2) / p.barrier.z_hat());
             let ratio = d2.sqrt() / p.barrier.offset;
             self.report.min_distance_ratio = self.report.min_distance_ratio.min(ratio);
         }
@@ -129,13 +139,13 @@ impl ContactState {
     /// (up to the ceiling) while the closest pair keeps closing within a small fraction of the
     /// reach. Returns whether kappa changed.
     pub fn update_stiffness(&mut self, min_z: f64, mean_diagonal: f64, ge: &[f64], gb: &[f64]) -> bool {
-        let b = self.surface.barrier;
-        let zh = b.z_hat();
+        // (the skin-on-skin barrier sets the scale)
+        let b = Barrier { offset: self.surface.max_offset(), reach: self.surface.reach };
         let changed = if self.stiffness == 0.0 {
-            if !min_z.is_finite() || min_z >= zh {
+            if min_z >= 1.0 {
                 return false;
             }
-            let z0 = 0.5 * zh;
+            let z0 = 0.5 * b.z_hat();
             let d0_squared = z0 + b.offset * b.offset;
             self.stiffness_min = mean_diagonal / (4.0 * d0_squared * b.curvature(z0));
             self.stiffness_max = 100.0 * self.stiffness_min;
@@ -144,7 +154,7 @@ impl ContactState {
             self.stiffness = balance.clamp(self.stiffness_min, self.stiffness_max);
             true
         } else {
-            let small = 1e-3 * zh;
+            let small = 1e-3;
             let closing = min_z < small && self.last_min_z < small && min_z < self.last_min_z;
             let doubled = (2.0 * self.stiffness).min(self.stiffness_max);
             let changed = closing && doubled > self.stiffness;

@@ -9,6 +9,16 @@ use super::barrier::{mollifier_threshold, Barrier};
 use super::distance::{squared_distance, Primitives};
 use super::pair::Pair;
 
+/// One layer's part of a surface.
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceLayer {
+    pub triangles: Vec<[u32; 3]>,
+    /// Its share of a pair's offset: half the skin's thickness, 0 for a body.
+    pub half_thickness: f64,
+    /// Whether it is solved for (a kinematic body is not: two of them never form a pair).
+    pub moving: bool,
+}
+
 /// The primitives of one patch that contact acts between.
 #[derive(Clone, Debug, Default)]
 pub struct Surface {
@@ -25,18 +35,24 @@ pub struct Surface {
     rest: Vec<DVec3>,
     /// Whether primitives of different layers may touch (false where kernels bind the layers).
     pub across_layers: bool,
-    /// The barrier between two of its primitives.
-    pub barrier: Barrier,
+    /// Each layer's half thickness and whether it moves.
+    half: Vec<f64>,
+    moving: Vec<bool>,
+    /// The barrier's reach d_hat beyond a pair's offset (m).
+    pub reach: f64,
 }
 
 impl Surface {
-    /// From each layer's triangles (packed numbers) and the packed rest positions.
-    pub fn new(layers: &[Vec<[u32; 3]>], rest: Vec<DVec3>, barrier: Barrier, across_layers: bool) -> Surface {
-        let mut s = Surface { rest, barrier, across_layers, ..Default::default() };
+    /// From each layer's triangles (packed numbers) and the packed rest positions; `reach`:
+    /// the barrier's d_hat.
+    pub fn new(layers: &[SurfaceLayer], rest: Vec<DVec3>, reach: f64, across_layers: bool) -> Surface {
+        let half = layers.iter().map(|l| l.half_thickness).collect();
+        let moving = layers.iter().map(|l| l.moving).collect();
+        let mut s = Surface { rest, reach, across_layers, half, moving, ..Default::default() };
         let mut edges = std::collections::BTreeMap::new();
         let mut points = std::collections::BTreeMap::new();
-        for (l, tris) in layers.iter().enumerate() {
-            for t in tris {
+        for (l, layer) in layers.iter().enumerate() {
+            for t in &layer.triangles {
                 s.triangles.push(*t);
                 s.tri_layer.push(l as u32);
                 for k in 0..3 {
@@ -60,14 +76,29 @@ impl Surface {
     }
 
     /// Whether two primitives of layers a and b, with vertices `v` (the pair's four), may form
-    /// a pair: they share no vertex, their layers may touch, and they are not already within
-    /// the barrier's reach at rest (neighbours on one surface, not two surfaces meeting).
+    /// a pair: they share no vertex, their layers may touch, at least one moves, and, on one
+    /// layer, they are not already within the barrier's reach at rest (neighbours on one
+    /// surface, not two surfaces meeting).
     fn admits(&self, kind: Primitives, v: &[u32; 4], a: u32, b: u32) -> bool {
         let shared = match kind {
             Primitives::PointTriangle => v[1..].contains(&v[0]),
             Primitives::EdgeEdge => v[0] == v[2] || v[0] == v[3] || v[1] == v[2] || v[1] == v[3],
         };
-        !shared && (a == b || self.across_layers) && !self.barrier.active(squared_distance(kind, &self.rest4(v)))
+        let layers = (a == b || self.across_layers) && (self.moving[a as usize] || self.moving[b as usize]);
+        // (two layers near each other at rest, a skin on a body, do touch)
+        let neighbours = a == b && self.barrier(a, b).active(squared_distance(kind, &self.rest4(v)));
+        !shared && layers && !neighbours
+    }
+
+    /// The barrier between primitives of layers a and b: offset by both half thicknesses.
+    pub fn barrier(&self, a: u32, b: u32) -> Barrier {
+        Barrier { offset: self.half[a as usize] + self.half[b as usize], reach: self.reach }
+    }
+
+    /// The largest pair offset (the broad phase's reach).
+    pub fn max_offset(&self) -> f64 {
+        let max = self.half.iter().fold(0.0f64, |m, &h| m.max(h));
+        2.0 * max
     }
 
     /// The point-triangle pair of point `p` (index into `points`) and triangle `t`, if admitted.
@@ -75,12 +106,8 @@ impl Surface {
         let tri = self.triangles[t];
         let v = [self.points[p], tri[0], tri[1], tri[2]];
         let kind = Primitives::PointTriangle;
-        self.admits(kind, &v, self.point_layer[p], self.tri_layer[t]).then_some(Pair {
-            v,
-            kind,
-            barrier: self.barrier,
-            eps: 0.0,
-        })
+        let (a, b) = (self.point_layer[p], self.tri_layer[t]);
+        self.admits(kind, &v, a, b).then(|| Pair { v, kind, barrier: self.barrier(a, b), eps: 0.0 })
     }
 
     /// The edge-edge pair of edges i and j, if admitted.
@@ -89,12 +116,18 @@ impl Surface {
         let v = [a[0], a[1], b[0], b[1]];
         let kind = Primitives::EdgeEdge;
         let length = |e: [u32; 2]| (self.rest[e[0] as usize] - self.rest[e[1] as usize]).length();
-        self.admits(kind, &v, self.edge_layer[i], self.edge_layer[j]).then(|| Pair {
+        let (la, lb) = (self.edge_layer[i], self.edge_layer[j]);
+        self.admits(kind, &v, la, lb).then(|| Pair {
             v,
             kind,
-            barrier: self.barrier,
+            barrier: self.barrier(la, lb),
             eps: mollifier_threshold(length(a), length(b)),
         })
+    }
+
+    /// The rest positions of every packed vertex.
+    pub fn rest_positions(&self) -> Vec<DVec3> {
+        self.rest.clone()
     }
 
     /// The packed vertices of the surface (a set, for tests and reports).

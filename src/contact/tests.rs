@@ -68,7 +68,9 @@ fn reference(kind: Primitives, x: &Points) -> f64 {
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     match kind {
         Primitives::PointTriangle => {
-            let mut best = point_segment(x[0], x[1], x[2]).min(point_segment(x[0], x[2], x[3])).min(point_segment(x[0], x[3], x[1]));
+            let mut best = point_segment(x[0], x[1], x[2])
+                .min(point_segment(x[0], x[2], x[3]))
+                .min(point_segment(x[0], x[3], x[1]));
             let (e1, e2) = (sub(x[2], x[1]), sub(x[3], x[1]));
             let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
             let nn = dot(n, n);
@@ -125,6 +127,15 @@ fn degenerate() -> Vec<(Primitives, Points)> {
         (EdgeEdge, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0]]),
         (EdgeEdge, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, -0.5, 0.2], [0.5 + 1e-9, 0.5, 0.2]]),
         (EdgeEdge, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1e-7, 0.3], [1.0, -1e-7, 0.3]]),
+        // Coplanar, parallel to round-off, side by side (a grid's rows and diagonals).
+        (
+            EdgeEdge,
+            [[0.015, 0.003, 0.0], [0.016, 0.002 + 1e-19, 0.0], [0.016, 0.004, 0.0], [0.017, 0.003 - 1e-19, 0.0]],
+        ),
+        (
+            EdgeEdge,
+            [[0.0175, 0.001, 0.0], [0.017, 0.002 + 4e-19, 0.0], [0.018, 0.002, 0.0], [0.0175, 0.003 + 8e-19, 0.0]],
+        ),
     ]
 }
 
@@ -184,7 +195,8 @@ fn pair_derivatives_match_central_differences() {
             };
             let fd = (pair.energy(&shifted(step)) - pair.energy(&shifted(-step))) / (2.0 * step);
             assert!((fd - g[i]).abs() <= 1e-6 * (1.0 + g[i].abs()), "{expected:?} g[{i}]: {fd} vs {}", g[i]);
-            let (gp, gm) = (pair.derivatives(&shifted(step), Filter::Exact).1, pair.derivatives(&shifted(-step), Filter::Exact).1);
+            let (gp, gm) =
+                (pair.derivatives(&shifted(step), Filter::Exact).1, pair.derivatives(&shifted(-step), Filter::Exact).1);
             for j in 0..12 {
                 let fd = (gp[j] - gm[j]) / (2.0 * step);
                 let scale = 1.0 + h.abs().max();
@@ -233,16 +245,76 @@ fn motions() -> Vec<(&'static str, Primitives, Points, Points, f64)> {
     let tri = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
     let z = [0.0; 3];
     vec![
-        ("point through a face, fast", PointTriangle, [[0.2, 0.2, 1.0], tri[0], tri[1], tri[2]], [[0.0, 0.0, -50.0], z, z, z], 0.01),
-        ("point through a face, slow", PointTriangle, [[0.2, 0.2, 1.0], tri[0], tri[1], tri[2]], [[0.0, 0.0, -1.5], z, z, z], 0.01),
-        ("face through a point", PointTriangle, [[0.2, 0.2, 0.0], tri[0], tri[1], tri[2]], [z, [0.0, 0.0, 9.0], [0.0, 0.0, 9.0], [0.0, 0.0, 9.0]], 0.0),
-        ("point past an edge, fast", PointTriangle, [[1.0, 1.0, 0.0], tri[0], tri[1], tri[2]], [[-30.0, -30.0, 0.0], z, z, z], 0.001),
-        ("point grazing at the thickness", PointTriangle, [[-0.5, 0.3, 0.0099999], tri[0], tri[1], tri[2]], [[2.0, 0.0, 0.0], z, z, z], 0.01),
-        ("point grazing above the thickness", PointTriangle, [[-0.5, 0.3, 0.0100001], tri[0], tri[1], tri[2]], [[2.0, 0.0, 0.0], z, z, z], 0.01),
-        ("edges crossing, fast", EdgeEdge, [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0]], [[0.0, 0.0, -40.0], [0.0, 0.0, -40.0], z, z], 0.02),
-        ("edge rotating through an edge", EdgeEdge, [[0.0, 0.0, 0.5], [1.0, 0.0, 0.5], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0]], [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], z, z], 0.0),
-        ("parallel edges closing", EdgeEdge, [[0.0, 0.0, 0.3], [1.0, 0.0, 0.3], [0.2, 0.0, 0.0], [1.2, 0.0, 0.0]], [[0.0, 0.0, -0.6], [0.0, 0.0, -0.6], z, z], 0.05),
-        ("edges grazing at the thickness", EdgeEdge, [[0.0, -1.0, 0.02], [0.0, -0.5, 0.02], [-0.5, 0.0, 0.0], [0.5, 0.0, 0.0]], [[0.0, 2.0, 0.0], [0.0, 2.0, 0.0], z, z], 0.0200001),
+        (
+            "point through a face, fast",
+            PointTriangle,
+            [[0.2, 0.2, 1.0], tri[0], tri[1], tri[2]],
+            [[0.0, 0.0, -50.0], z, z, z],
+            0.01,
+        ),
+        (
+            "point through a face, slow",
+            PointTriangle,
+            [[0.2, 0.2, 1.0], tri[0], tri[1], tri[2]],
+            [[0.0, 0.0, -1.5], z, z, z],
+            0.01,
+        ),
+        (
+            "face through a point",
+            PointTriangle,
+            [[0.2, 0.2, 0.0], tri[0], tri[1], tri[2]],
+            [z, [0.0, 0.0, 9.0], [0.0, 0.0, 9.0], [0.0, 0.0, 9.0]],
+            0.0,
+        ),
+        (
+            "point past an edge, fast",
+            PointTriangle,
+            [[1.0, 1.0, 0.0], tri[0], tri[1], tri[2]],
+            [[-30.0, -30.0, 0.0], z, z, z],
+            0.001,
+        ),
+        (
+            "point grazing at the thickness",
+            PointTriangle,
+            [[-0.5, 0.3, 0.0099999], tri[0], tri[1], tri[2]],
+            [[2.0, 0.0, 0.0], z, z, z],
+            0.01,
+        ),
+        (
+            "point grazing above the thickness",
+            PointTriangle,
+            [[-0.5, 0.3, 0.0100001], tri[0], tri[1], tri[2]],
+            [[2.0, 0.0, 0.0], z, z, z],
+            0.01,
+        ),
+        (
+            "edges crossing, fast",
+            EdgeEdge,
+            [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0]],
+            [[0.0, 0.0, -40.0], [0.0, 0.0, -40.0], z, z],
+            0.02,
+        ),
+        (
+            "edge rotating through an edge",
+            EdgeEdge,
+            [[0.0, 0.0, 0.5], [1.0, 0.0, 0.5], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0]],
+            [[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], z, z],
+            0.0,
+        ),
+        (
+            "parallel edges closing",
+            EdgeEdge,
+            [[0.0, 0.0, 0.3], [1.0, 0.0, 0.3], [0.2, 0.0, 0.0], [1.2, 0.0, 0.0]],
+            [[0.0, 0.0, -0.6], [0.0, 0.0, -0.6], z, z],
+            0.05,
+        ),
+        (
+            "edges grazing at the thickness",
+            EdgeEdge,
+            [[0.0, -1.0, 0.02], [0.0, -0.5, 0.02], [-0.5, 0.0, 0.0], [0.5, 0.0, 0.0]],
+            [[0.0, 2.0, 0.0], [0.0, 2.0, 0.0], z, z],
+            0.0200001,
+        ),
         ("still", PointTriangle, [[0.2, 0.2, 1.0], tri[0], tri[1], tri[2]], [z; 4], 0.01),
     ]
 }

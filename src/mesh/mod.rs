@@ -2,6 +2,7 @@
 
 pub mod bodies;
 pub mod bounds;
+pub mod crossing;
 pub(crate) mod generate;
 pub mod hand;
 pub mod imperfection;

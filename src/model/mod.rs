@@ -33,6 +33,16 @@ pub struct Patch {
     pub index: u32,
 }
 
+/// On a patch: barrier contact between its shell surfaces (SI lengths; `crate::contact`).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Contact {
+    /// The barrier's offset xi: the distance it keeps two surfaces apart (m).
+    pub thickness: f64,
+    /// Its reach d_hat beyond the offset (m).
+    pub reach: f64,
+    pub friction: f64,
+}
+
 /// What a layer is made of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum LayerKind {

@@ -185,6 +185,7 @@ impl Builder {
             drivers,
             couplings: Vec::new(),
             anchors: None,
+            contact: None,
         };
         if let Some((_, message)) = super::geometry::geometry_error(&body) {
             return Err(self.err(format!("{at}.mesh"), message));
@@ -333,8 +334,22 @@ impl Builder {
             }
         }
         let anchors = p.anchors.as_ref().map(|a| self.anchors(&format!("{at}.anchors"), a, &cx)).transpose()?;
-        let patch =
-            BuiltPatch { name: p.name.clone(), body, solver, perturbation, layers, drivers, couplings, anchors };
+        let contact = p
+            .contact
+            .as_ref()
+            .map(|c| self.contact(&format!("{at}.contact"), c, p, &layers[first..], len))
+            .transpose()?;
+        let patch = BuiltPatch {
+            name: p.name.clone(),
+            body,
+            solver,
+            perturbation,
+            layers,
+            drivers,
+            couplings,
+            anchors,
+            contact,
+        };
         if let Some((li, message)) = super::geometry::geometry_error(&patch) {
             let field = match li.checked_sub(first) {
                 Some(own) => format!("{at}.layers[{own}] (\"{}\").mesh", patch.layers[li].name),

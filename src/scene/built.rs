@@ -40,6 +40,7 @@ pub struct BuiltPatch {
     pub drivers: Vec<BuiltDriver>,
     pub couplings: Vec<BuiltCoupling>,
     pub anchors: Option<BuiltAnchors>,
+    pub contact: Option<crate::model::Contact>,
 }
 
 /// A coupling's kernels, clustered at load (SI units).

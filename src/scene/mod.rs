@@ -7,6 +7,7 @@ pub mod anchors;
 mod build;
 pub mod built;
 mod character;
+mod contact;
 mod context;
 mod couplings;
 mod drivers;

@@ -120,6 +120,9 @@ fn spawn_patch(world: &mut World, p: &BuiltPatch, index: u32, role: Role) -> (En
     if !motion.motions.is_empty() {
         world.entity_mut(patch).insert((motion, LoadHeld::default()));
     }
+    if let Some(c) = p.contact {
+        world.entity_mut(patch).insert(c);
+    }
     if !captures.is_empty() {
         world.entity_mut(patch).insert(PatchCaptures(captures));
     }

@@ -201,7 +201,8 @@ pub(super) fn newton_kkt(
             continue;
         }
         let tolerance = settings.tolerance;
-        let search = Search { dx: &dx, slope: merit_slope, phi: phi_merit, residual, energy_scale, tolerance };
+        let search =
+            Search { dx: &dx, slope: merit_slope, phi: phi_merit, residual, energy_scale, tolerance, first: 1.0 };
         let accepted = line_search(packed, pattern, search, &merit, &mut out);
         if !accepted {
             // A rejected step at the round-off floor still has to satisfy the constraints.

@@ -22,6 +22,8 @@ pub enum Part {
     Volume,
     /// Attachment springs, KCK18 anchors and pins.
     Springs,
+    /// Barrier contact.
+    Contact,
 }
 
 /// How an element's coordinates couple: every pair of its 3 NV coordinates, or only the same

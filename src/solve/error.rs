@@ -27,4 +27,6 @@ pub enum SolveError {
     Unfactorizable,
     #[error("the constrained Newton system has no descent direction after {iterations} iterations")]
     NoDescent { iterations: u32 },
+    #[error("prescribed vertices could not reach their targets without passing through the skin ({substeps} solves)")]
+    Blocked { substeps: u32 },
 }

@@ -23,23 +23,26 @@ pub struct EnergyParts {
     /// Attachment springs, KCK18 anchors and pins.
     #[serde(rename = "energy_springs")]
     pub springs: f64,
+    /// Barrier contact (reported in the frame's `contact` object, not as a column of its own).
+    #[serde(skip)]
+    pub contact: f64,
 }
 
 impl EnergyParts {
     /// The elastic energy: the parts summed in this order.
     pub fn total(&self) -> f64 {
-        self.membrane + self.bending + self.volume + self.springs
+        self.membrane + self.bending + self.volume + self.springs + self.contact
     }
 
     /// Sums each kind's energy into its part, in the kinds' order: a part's first kind sets it.
     fn collect(kinds: impl Iterator<Item = (Part, f64)>) -> EnergyParts {
-        let mut parts: [Option<f64>; 4] = [None; 4];
+        let mut parts: [Option<f64>; 5] = [None; 5];
         for (part, e) in kinds {
             let slot = &mut parts[part as usize];
             *slot = Some(slot.map_or(e, |s| s + e));
         }
-        let [membrane, bending, volume, springs] = parts.map(|p| p.unwrap_or(0.0));
-        EnergyParts { membrane, bending, volume, springs }
+        let [membrane, bending, volume, springs, contact] = parts.map(|p| p.unwrap_or(0.0));
+        EnergyParts { membrane, bending, volume, springs, contact }
     }
 }
 

@@ -2,6 +2,7 @@
 //! needs (`newton` without kernels, `constrained` with them).
 
 use super::constrained::newton_kkt;
+use super::contact;
 use super::error::SolveError;
 use super::iteration::FrameOutcome;
 use super::kkt::KktSystem;
@@ -20,7 +21,7 @@ pub fn solve_frame(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64)
 }
 
 fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result<FrameOutcome, SolveError> {
-    let (pattern, mut chol) = match packed.cache.system.take() {
+    let (mut pattern, mut chol) = match packed.cache.system.take() {
         Some(system) => system,
         None => {
             let p = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
@@ -44,8 +45,14 @@ fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result
     }
     chol.set_precision(settings.precision);
     let before = chol.factorizations;
-    let result = newton(packed, &pattern, &mut chol, settings, dt).map(|mut o| {
+    let result = if packed.contact.is_some() {
+        contact::continuation(packed, &mut pattern, &mut chol, settings, dt)
+    } else {
+        newton(packed, &mut pattern, &mut chol, settings, dt)
+    };
+    let result = result.map(|mut o| {
         o.factorizations = (chol.factorizations - before) as u32;
+        o.contact = contact::report(packed);
         o
     });
     packed.cache.system = Some((pattern, chol));

@@ -55,6 +55,9 @@ pub struct FrameOutcome {
     pub start_violation: f64,
     /// Tetrahedra with non-positive volume at the end of the frame (models that allow inversion).
     pub inverted: usize,
+    /// Barrier contact (a patch with `contact`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact: Option<crate::contact::ContactReport>,
     /// The merit after each accepted trust-region step (empty with the line search).
     #[serde(skip)]
     pub merits: Vec<f64>,
@@ -63,6 +66,36 @@ pub struct FrameOutcome {
     /// evaluations, the stability test.
     #[serde(rename = "solve_breakdown_ms")]
     pub counters: SolveCounters,
+}
+
+impl FrameOutcome {
+    /// Adds a later solve of the same frame (contact's substeps): counts and timers add up, the
+    /// end state's figures are the later solve's, the start's this one's.
+    pub(crate) fn absorb(&mut self, next: FrameOutcome) {
+        let first = self.iterations == 0 && self.factorizations == 0;
+        let (start_energy, start_violation) = (self.start_energy, self.start_violation);
+        let sum = |a: u32, b: u32| a + b;
+        let mut out = FrameOutcome {
+            iterations: sum(self.iterations, next.iterations),
+            regularized: sum(self.regularized, next.regularized),
+            line_search_failures: sum(self.line_search_failures, next.line_search_failures),
+            escapes: sum(self.escapes, next.escapes),
+            unmodelled_steps: sum(self.unmodelled_steps, next.unmodelled_steps),
+            factorizations: sum(self.factorizations, next.factorizations),
+            cg_iterations: sum(self.cg_iterations, next.cg_iterations),
+            counters: SolveCounters {
+                assemble_ms: self.counters.assemble_ms + next.counters.assemble_ms,
+                factorize_ms: self.counters.factorize_ms + next.counters.factorize_ms,
+                line_search_ms: self.counters.line_search_ms + next.counters.line_search_ms,
+                stability_ms: self.counters.stability_ms + next.counters.stability_ms,
+            },
+            ..next
+        };
+        if !first {
+            (out.start_energy, out.start_violation) = (start_energy, start_violation);
+        }
+        *self = out;
+    }
 }
 
 /// Per-frame timers inside Newton (rapier's `counters`).
@@ -201,6 +234,8 @@ pub(super) struct Search<'a> {
     pub residual: f64,
     pub energy_scale: f64,
     pub tolerance: f64,
+    /// The first step length tried: 1, or less where contact's collision test bounds it.
+    pub first: f64,
 }
 
 /// Armijo backtracking on the total potential along `dx`; counts the iteration. Returns false
@@ -212,10 +247,10 @@ pub(super) fn line_search(
     total: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
     out: &mut FrameOutcome,
 ) -> bool {
-    let Search { dx, slope, phi, residual, energy_scale, tolerance } = search;
+    let Search { dx, slope, phi, residual, energy_scale, tolerance, first } = search;
     let clock = std::time::Instant::now();
     let x0 = packed.state.x.clone();
-    let mut alpha = 1.0;
+    let mut alpha = first;
     let mut accepted = false;
     // Near the solution the decrease can fall below the energy's round-off: there a full
     // Newton step is accepted if the energy stays within that band.

@@ -168,6 +168,8 @@ fn sub_patch(packed: &PackedPatch, free: &[bool]) -> (PackedPatch, Vec<u32>) {
         cache: Default::default(),
         local: None,
         load_held: false,
+        // (a region is solved without contact: scenes with contact do not remesh)
+        contact: None,
     };
     (sub, map)
 }

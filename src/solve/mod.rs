@@ -4,6 +4,7 @@
 
 mod constrained;
 pub mod constraints;
+mod contact;
 pub mod eigen;
 pub mod element;
 pub mod elements;

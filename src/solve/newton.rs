@@ -3,6 +3,7 @@
 
 use glam::DVec3;
 
+use super::contact;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
@@ -25,7 +26,7 @@ const MAX_REFINEMENTS: u32 = 20;
 
 pub(super) fn newton(
     packed: &mut PackedPatch,
-    pattern: &Pattern,
+    pattern: &mut Pattern,
     chol: &mut CholeskySolver,
     settings: &SolverSettings,
     dt: f64,
@@ -42,13 +43,21 @@ pub(super) fn newton(
         dx: vec![0.0; n],
         scratch: Vec::new(),
         out: FrameOutcome::default(),
+        relisted: false,
         progress: Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n),
     };
 
     loop {
         let filter = it.progress.filter();
-        let Assembly { parts, force_scale } =
+        if std::mem::take(&mut it.relisted) && contact::fit(packed, pattern, chol, settings) {
+            it.values.resize(pattern.nnz(), 0.0);
+        }
+        let mut assembly =
             evaluate(packed, pattern, filter, inertia.as_ref(), &mut it.grad, &mut it.values, &mut it.out);
+        if contact::stiffen(packed, pattern, &it.grad, &it.values) {
+            assembly = evaluate(packed, pattern, filter, inertia.as_ref(), &mut it.grad, &mut it.values, &mut it.out);
+        }
+        let Assembly { parts, force_scale } = assembly;
         let phi = total(&parts, &packed.state.x);
         let gnorm = it.grad.iter().map(|g| g * g).sum::<f64>().sqrt();
         if !phi.is_finite() || !gnorm.is_finite() {
@@ -109,6 +118,8 @@ struct Loop {
     /// The shifted Hessian's values when H itself does not factorize.
     scratch: Vec<f64>,
     out: FrameOutcome,
+    /// Contact: the pair list changed since the pattern's maps were made (`contact::fit`).
+    relisted: bool,
     progress: Progress,
 }
 
@@ -135,7 +146,9 @@ impl Loop {
     ) -> bool {
         let slope: f64 = self.dx.iter().zip(&self.grad).map(|(a, b)| a * b).sum();
         let (phi, residual, scale, tol) = (at.phi, at.residual, self.energy_scale, settings.tolerance);
-        let search = Search { dx: &self.dx, slope, phi, residual, energy_scale: scale, tolerance: tol };
+        let first = contact::bound_step(packed, pattern, &self.dx);
+        self.relisted |= packed.contact.is_some();
+        let search = Search { dx: &self.dx, slope, phi, residual, energy_scale: scale, tolerance: tol, first };
         line_search(packed, pattern, search, total, &mut self.out)
     }
 
@@ -153,7 +166,14 @@ impl Loop {
         if at.filter != Filter::Exact {
             assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut self.grad, &mut self.values);
         }
-        let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
+        // (with contact, an escape may not pass the surfaces through each other)
+        let energy_at = |x: &[DVec3]| {
+            if contact::clear_path(packed, &packed.state.x, x) {
+                energy(&packed.elements, x).total()
+            } else {
+                f64::INFINITY
+            }
+        };
         let settle = self.out.escapes > 0 && self.out.iterations < settings.max_iterations;
         let clock = std::time::Instant::now();
         let (values, scale) = (&self.values, self.energy_scale);
@@ -167,6 +187,7 @@ impl Loop {
             Leave::Stay => false,
             Leave::Escape(x) => {
                 packed.state.x = x;
+                self.relisted |= contact::relist(packed);
                 self.out.escapes += 1;
                 self.out.converged = false;
                 self.progress.restart();

@@ -27,6 +27,9 @@ pub struct PackedPatch {
     pub cache: SolverCache,
     /// What the Settle stage's region solve did this frame (issue 26 item 2), for the report.
     pub local: Option<LocalReport>,
+    /// Barrier contact on the patch's surface (a scene's `contact`), with what it keeps
+    /// between iterations and frames.
+    pub contact: Option<crate::contact::ContactState>,
     /// Whether this frame's load is the one the last solve was accepted under (`LoadHeld`,
     /// set by the Solve system): the frame is then converged once its residual is back within
     /// the one the load was accepted at (`SolverCache::accepted`; twice it when that was the
@@ -159,6 +162,7 @@ impl PackedPatch {
             cache: SolverCache::default(),
             local: None,
             load_held: false,
+            contact: None,
         }
     }
 }

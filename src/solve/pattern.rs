@@ -143,6 +143,35 @@ impl Pattern {
         p
     }
 
+    /// Whether every coupling of the term's stencils is an entry (its symbolic analysis holds).
+    pub(crate) fn covers(&self, term: &dyn super::element::Term) -> bool {
+        let mut all = true;
+        term.stencils(&mut |v| {
+            all = all
+                && v.iter().all(|&a| {
+                    v.iter().all(|&b| {
+                        (0..3).all(|i| {
+                            (0..3).all(|j| {
+                                let (da, db) = (self.dof[3 * a as usize + i], self.dof[3 * b as usize + j]);
+                                da == NONE || db == NONE || self.position_of(da, db).is_some()
+                            })
+                        })
+                    })
+                })
+        });
+        all
+    }
+
+    /// Recomputes kind k's scatter map (its list changed inside the pattern).
+    pub(crate) fn remap(&mut self, k: usize, term: &dyn super::element::Term) {
+        let mut map = Vec::new();
+        term.stencils(&mut |v| match term.coupling() {
+            Coupling::Full => map.extend(self.element_map(v)),
+            Coupling::PerCoordinate => map.extend(self.stencil_map(v)),
+        });
+        self.maps[k] = map;
+    }
+
     /// Position of the (symmetric) entry of DOFs a and b, None outside the pattern.
     pub(crate) fn position_of(&self, a: u32, b: u32) -> Option<u32> {
         let (r, c) = if a >= b { (a, b) } else { (b, a) };

@@ -5,6 +5,7 @@
 //! fixed coordinates and anchor targets are gathered.
 
 mod anchor_springs;
+mod contact_surface;
 mod kernel_rows;
 mod rebuild;
 
@@ -61,11 +62,13 @@ pub struct PatchItems {
     pub kernels: Option<&'static PatchKernels>,
     pub packed: &'static mut PackedPatch,
     pub index: &'static mut PackedIndex,
+    pub contact: Option<&'static Contact>,
 }
 
 pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, items: ElementItems) {
     for patch in &mut patches {
-        let PatchItemsItem { layers: patch_layers, bodies, kernels: patch_kernels, mut packed, mut index } = patch;
+        let PatchItemsItem { layers: patch_layers, bodies, kernels: patch_kernels, mut packed, mut index, contact } =
+            patch;
         let (packed, index) = (packed.as_mut(), index.as_mut());
         let bodies = bodies.map_or(&[][..], |b| &b.0);
         let key = topology_key(patch_layers.entities().iter().chain(bodies), &layers);
@@ -73,6 +76,7 @@ pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, 
         if rebuilt {
             rebuild::rebuild(packed, index, patch_layers, bodies, &layers, &items);
             anchor_springs::rebuild(packed, index, patch_layers, &layers, &items.anchors);
+            contact_surface::rebuild(packed, index, patch_layers, contact, &layers, &items);
             index.key = key;
         }
         if let Some(pk) = patch_kernels {

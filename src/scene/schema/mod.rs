@@ -140,6 +140,25 @@ pub struct PatchSpec {
     /// KCK18 anchors holding a skin layer to a kinematic body.
     #[serde(default)]
     pub anchors: Option<AnchorSpec>,
+    /// Barrier contact between the patch's shell surfaces (IPC), so that folds of skin do not
+    /// pass through each other.
+    #[serde(default)]
+    pub contact: Option<ContactSpec>,
+}
+
+/// `contact: (thickness: 0.5, d_hat: 0.25, friction: 0.0)` (length units).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, rename = "Contact")]
+pub struct ContactSpec {
+    /// The distance the barrier keeps two skin surfaces apart (the shell's half thickness on
+    /// each side).
+    pub thickness: f64,
+    /// How far beyond the thickness the barrier acts; half the thickness when absent.
+    #[serde(default)]
+    pub d_hat: Option<f64>,
+    /// Coulomb friction between touching skin (not yet supported: 0).
+    #[serde(default)]
+    pub friction: f64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

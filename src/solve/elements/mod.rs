@@ -4,6 +4,7 @@
 
 mod anchor;
 mod cell;
+mod contact;
 mod gaussian;
 mod hinge;
 mod membrane;
@@ -68,6 +69,8 @@ elements! {
     /// layers are remeshed): v = [vertex, face corners], w = [1, -barycentric], target 0.
     face_springs: Vec<AnchorElem<4>>,
     pins: Vec<PinElem>,
+    /// Barrier contact pairs near the state (a patch with `contact`; refreshed as it moves).
+    contacts: crate::contact::ContactPairs,
 }
 
 impl Elements {

@@ -1,0 +1,73 @@
+//! A patch's `contact`: validated and converted to SI (`model::Contact`), with what it needs
+//! of the rest of the patch, and a start state whose shell surfaces do not cross.
+
+use super::built::{BuiltLayer, LayerMesh};
+use super::context::Builder;
+use super::error::SceneError;
+use super::schema::{ContactSpec, PatchSpec};
+use crate::model::{Contact, LayerKind};
+use crate::solve::SolveMode;
+
+impl Builder {
+    /// `layers`: the patch's own layers (its body's excluded); `len`: metres per length unit.
+    pub(super) fn contact(
+        &self,
+        at: &str,
+        c: &ContactSpec,
+        p: &PatchSpec,
+        layers: &[BuiltLayer],
+        len: f64,
+    ) -> Result<Contact, SceneError> {
+        let positive = |field: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(v * len)
+            } else {
+                Err(self.err(format!("{at}.{field}"), format!("must be a positive length, not {v}")))
+            }
+        };
+        let thickness = positive("thickness", c.thickness)?;
+        let reach = match c.d_hat {
+            Some(d) => positive("d_hat", d)?,
+            None => 0.5 * thickness,
+        };
+        if c.friction != 0.0 {
+            let message = "friction between touching skin is not supported yet: set 0 (frictionless)";
+            return Err(self.err(format!("{at}.friction"), message));
+        }
+        // What the contact solve does not combine with yet.
+        let refuse = |why: &str| Err(self.err(at.to_string(), format!("contact {why} is not supported yet")));
+        if !p.couplings.is_empty() {
+            return refuse("on a patch with kernels (couplings)");
+        }
+        if layers.iter().any(|l| l.remesh.is_some()) {
+            return refuse("on a remeshed layer");
+        }
+        if p.solver.mode != SolveMode::Quasistatic {
+            return refuse("with dynamics (solver mode other than Quasistatic)");
+        }
+        if !layers.iter().any(|l| l.kind == LayerKind::Shell) {
+            return Err(self.err(at.to_string(), "acts between shell layers, and the patch has none"));
+        }
+        // A start state that already crosses cannot be made feasible: refuse it by name. (Its
+        // shells and the kinematic bodies in the patch, as the contact surface holds them.)
+        let (mut tris, mut x, mut owner) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, l) in layers.iter().enumerate() {
+            let LayerMesh::Surface(m) = &l.mesh else { continue };
+            if !matches!(l.kind, LayerKind::Shell | LayerKind::Kinematic) {
+                continue;
+            }
+            let base = x.len() as u32;
+            x.extend_from_slice(&m.rest);
+            for (f, t) in m.faces.iter().enumerate() {
+                tris.push(t.map(|v| v + base));
+                owner.push((i, f));
+            }
+        }
+        if let Some(&(a, b)) = crate::mesh::crossing::crossing_pairs(&tris, &x).first() {
+            let name = |k: usize| format!("face {} of layer \"{}\"", owner[k].1, layers[owner[k].0].name);
+            let message = format!("the start state already crosses: {} passes through {}", name(a), name(b));
+            return Err(self.err(at.to_string(), message));
+        }
+        Ok(Contact { thickness, reach, friction: c.friction })
+    }
+}

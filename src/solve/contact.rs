@@ -1,0 +1,200 @@
+//! The Newton loop's side of barrier contact (`crate::contact`): the pair list kept near the
+//! state and inside the sparse pattern, the barrier stiffness, and the continuous collision
+//! bound on every step.
+//!
+//! The list holds every pair within offset + d_hat + margin of the state, or of the step just
+//! searched (a swept broad phase), so the energy of any state the line search tries counts
+//! every pair that can be active there. The pattern holds the couplings of every pair listed
+//! since it was built: a list that changes inside it only needs new scatter maps; one that
+//! leaves it needs a new pattern and symbolic analysis (both counted).
+
+use glam::DVec3;
+
+use super::element::Part;
+use super::error::SolveError;
+use super::iteration::mean_abs_diagonal;
+use super::iteration::FrameOutcome;
+use super::linear::CholeskySolver;
+use super::newton::newton;
+use super::packed::PackedPatch;
+use super::pattern::{Pattern, NONE};
+use super::settings::SolverSettings;
+use crate::contact::{ContactReport, ContactState};
+
+/// The contact kind's index among the registered terms.
+fn kind(packed: &PackedPatch) -> usize {
+    packed.elements.terms().iter().position(|t| t.part() == Part::Contact).expect("the contact kind is registered")
+}
+
+/// Puts the listed pairs inside the pattern: new scatter maps when their couplings are in it,
+/// else a new pattern and symbolic analysis. Returns whether the pattern was rebuilt (the
+/// caller's value buffers change size).
+pub(super) fn fit(
+    packed: &mut PackedPatch,
+    pattern: &mut Pattern,
+    chol: &mut CholeskySolver,
+    settings: &SolverSettings,
+) -> bool {
+    let k = kind(packed);
+    let terms = packed.elements.terms();
+    let covered = pattern.covers(terms[k]);
+    if covered {
+        pattern.remap(k, terms[k]);
+    }
+    let state = packed.contact.as_mut().expect("a patch with contact");
+    if covered {
+        state.report.remaps += 1;
+        return false;
+    }
+    state.report.reanalyses += 1;
+    *pattern = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
+    let count = chol.factorizations;
+    *chol = CholeskySolver::analyze(pattern);
+    chol.set_precision(settings.precision);
+    chol.factorizations = count;
+    true
+}
+
+/// After an assembly at the state: records the iterate and applies IPC's stiffness rule
+/// (`ContactState::update_stiffness`). `grad`, `values`: the assembled gradient and Hessian.
+/// Returns whether the stiffness changed (the assembly is then stale).
+pub(super) fn stiffen(packed: &mut PackedPatch, pattern: &Pattern, grad: &[f64], values: &[f64]) -> bool {
+    let Some(state) = packed.contact.as_mut() else { return false };
+    let x = &packed.state.x;
+    let min_z = state.observe(&packed.elements.contacts.pairs, x);
+    let first = state.stiffness == 0.0;
+    // The barrier's gradient at unit stiffness, over free DOFs (only needed the first time).
+    let mut barrier = vec![0.0; if first { pattern.n } else { 0 }];
+    if first && min_z.is_finite() {
+        let unit = crate::contact::ContactPairs { pairs: packed.elements.contacts.pairs.clone(), stiffness: 1.0 };
+        let mut g = vec![DVec3::ZERO; x.len()];
+        super::element::Term::add_gradient(&unit, x, &mut g);
+        for (v, gv) in g.iter().enumerate() {
+            for c in 0..3 {
+                let d = pattern.dof[3 * v + c];
+                if d != NONE {
+                    barrier[d as usize] += gv[c];
+                }
+            }
+        }
+    }
+    let changed = state.update_stiffness(min_z, mean_abs_diagonal(pattern, values), grad, &barrier);
+    packed.elements.contacts.stiffness = state.stiffness;
+    changed
+}
+
+/// Before a line search along `dx` (free DOFs) from the state: lists the pairs near the step
+/// and returns the largest fraction of it no pair crosses (additive CCD), counting a cut.
+pub(super) fn bound_step(packed: &mut PackedPatch, pattern: &Pattern, dx: &[f64]) -> f64 {
+    let Some(state) = packed.contact.as_mut() else { return 1.0 };
+    let x = &packed.state.x;
+    let mut end = x.clone();
+    super::iteration::step(&mut end, x, &pattern.dof, dx, 1.0);
+    let pairs = state.pairs_near(x, Some(&end), &packed.state.fixed);
+    let d: Vec<DVec3> = end.iter().zip(x).map(|(a, b)| *a - *b).collect();
+    let alpha = ContactState::step_bound(&pairs, x, &d);
+    if alpha < 1.0 {
+        state.report.ccd_cuts += 1;
+    }
+    packed.elements.contacts.pairs = pairs;
+    alpha
+}
+
+/// Lists the pairs near the state (after a jump the line search did not make: an escape).
+/// Returns whether the patch has contact.
+pub(super) fn relist(packed: &mut PackedPatch) -> bool {
+    let Some(state) = packed.contact.as_mut() else { return false };
+    packed.elements.contacts.pairs = state.pairs_near(&packed.state.x, None, &packed.state.fixed);
+    true
+}
+
+/// Whether the straight path from `from` to `to` crosses no pair (the stability test's escape).
+pub(super) fn clear_path(packed: &PackedPatch, from: &[DVec3], to: &[DVec3]) -> bool {
+    let Some(state) = packed.contact.as_ref() else { return true };
+    let mut pairs = crate::contact::broad::candidates(&state.surface, from, Some(to), state.list_reach());
+    pairs.retain(|p| p.v.iter().any(|&v| packed.state.fixed[v as usize] != [true; 3]));
+    let d: Vec<DVec3> = to.iter().zip(from).map(|(a, b)| *a - *b).collect();
+    ContactState::step_bound(&pairs, from, &d) >= 1.0
+}
+
+/// Most solves in one frame (`continuation`).
+const MAX_SUBSTEPS: u32 = 64;
+
+/// A frame's solve with contact. Prescribed coordinates (a body in the patch, held skin) jump to
+/// their targets between frames, and a jump may pass through the skin. They move instead from
+/// where the last solve left them, as far towards their targets as no pair crosses (additive
+/// CCD against the skin at rest where it is), and the skin is solved there; repeated until they
+/// arrive. Quasistatic only (the scene refuses contact with dynamics).
+pub(super) fn continuation(
+    packed: &mut PackedPatch,
+    pattern: &mut Pattern,
+    chol: &mut CholeskySolver,
+    settings: &SolverSettings,
+    dt: f64,
+) -> Result<FrameOutcome, SolveError> {
+    let target = packed.state.x.clone();
+    let state = packed.contact.as_mut().expect("a patch with contact");
+    state.begin_frame();
+    let from = if state.last.len() == target.len() { state.last.clone() } else { state.surface.rest_positions() };
+    // Prescribed coordinates start where they were; free ones where the last frame left them.
+    for (v, x) in packed.state.x.iter_mut().enumerate() {
+        for k in (0..3).filter(|&k| packed.state.fixed[v][k]) {
+            x[k] = from[v][k];
+        }
+    }
+    let mut total = FrameOutcome::default();
+    loop {
+        let x = packed.state.x.clone();
+        // (the prescribed coordinates' way to their targets; free ones stay)
+        let d: Vec<DVec3> =
+            target_with_free(&target, &x, &packed.state.fixed).iter().zip(&x).map(|(t, p)| *t - *p).collect();
+        let end: Vec<DVec3> = x.iter().zip(&d).map(|(p, d)| *p + *d).collect();
+        let state = packed.contact.as_mut().expect("a patch with contact");
+        let pairs = state.pairs_near(&x, Some(&end), &packed.state.fixed);
+        let alpha = if d.iter().all(|v| *v == DVec3::ZERO) { 1.0 } else { ContactState::step_bound(&pairs, &x, &d) };
+        state.report.substeps += 1;
+        tracing::debug!(substep = state.report.substeps, alpha, pairs = pairs.len(), "contact continuation");
+        for (p, d) in packed.state.x.iter_mut().zip(&d) {
+            *p += alpha * *d;
+        }
+        if alpha >= 1.0 {
+            packed.state.x = target_with_free(&target, &packed.state.x, &packed.state.fixed);
+        }
+        packed.elements.contacts.pairs = state.pairs_near(&packed.state.x, None, &packed.state.fixed);
+        packed.elements.contacts.stiffness = state.stiffness;
+        fit(packed, pattern, chol, settings);
+        let out = newton(packed, pattern, chol, settings, dt)?;
+        total.absorb(out);
+        let state = packed.contact.as_mut().expect("a patch with contact");
+        if alpha >= 1.0 {
+            state.last = packed.state.x.clone();
+            return Ok(total);
+        }
+        // (a step below a millionth: the skin is squeezed between held parts)
+        if state.report.substeps >= MAX_SUBSTEPS || alpha < 1e-6 {
+            return Err(SolveError::Blocked { substeps: state.report.substeps });
+        }
+    }
+}
+
+/// The target's prescribed coordinates with the free ones of `x` (exactly: no round-off of
+/// x + 1 (target - x)).
+fn target_with_free(target: &[DVec3], x: &[DVec3], fixed: &[[bool; 3]]) -> Vec<DVec3> {
+    target
+        .iter()
+        .zip(x)
+        .zip(fixed)
+        .map(|((t, p), f)| {
+            DVec3::new(if f[0] { t.x } else { p.x }, if f[1] { t.y } else { p.y }, if f[2] { t.z } else { p.z })
+        })
+        .collect()
+}
+
+/// The frame's record, with the state's end.
+pub(super) fn report(packed: &PackedPatch) -> Option<ContactReport> {
+    let state = packed.contact.as_ref()?;
+    let mut r = state.report;
+    r.stiffness = state.stiffness;
+    r.energy = super::element::Term::energy(&packed.elements.contacts, &packed.state.x);
+    Some(r)
+}

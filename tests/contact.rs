@@ -1,0 +1,182 @@
+//! Issue 64: barrier contact. Skin that folds onto itself never passes through itself and never
+//! comes closer than the contact thickness, checked on every frame by references that share no
+//! code with the contact module: Shewchuk's exact orientation predicates for crossing
+//! triangles (`mesh::crossing`) and a clamped-projection distance written here. The same
+//! scene without contact does cross, so the test can fail.
+
+mod common;
+
+use common::*;
+use glam::DVec3;
+use skinsim::mesh::crossing::crossing_pairs;
+use skinsim::scene::load_str;
+use skinsim_systems::Simulation;
+
+fn variant(rel: &str, edits: &[(&str, &str)]) -> skinsim::scene::BuiltScene {
+    let mut text = std::fs::read_to_string(scene_path(rel)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{rel} has no {from:?}");
+        text = text.replace(from, to);
+    }
+    load_str(&text, &scene_path(rel)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Squared distance from p to the segment a-b (clamped projection).
+fn point_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let e = b - a;
+    let t = if e.length_squared() > 0.0 { ((p - a).dot(e) / e.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+    (p - (a + t * e)).length_squared()
+}
+
+/// Squared distance from p to the triangle: its plane where the foot is inside, else its edges.
+fn point_triangle(p: DVec3, t: [DVec3; 3]) -> f64 {
+    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    let foot = p - n * ((p - t[0]).dot(n) / n.length_squared());
+    let inside = (0..3).all(|k| (t[(k + 1) % 3] - t[k]).cross(foot - t[k]).dot(n) >= 0.0);
+    let edges = (0..3).map(|k| point_segment(p, t[k], t[(k + 1) % 3])).fold(f64::INFINITY, f64::min);
+    if inside {
+        edges.min((p - foot).length_squared())
+    } else {
+        edges
+    }
+}
+
+/// Squared distance between segments a and b: the interior closest points where both fall
+/// inside, else the endpoints against the other segment.
+fn segment_segment(a: [DVec3; 2], b: [DVec3; 2]) -> f64 {
+    let (u, v, w) = (a[1] - a[0], b[1] - b[0], a[0] - b[0]);
+    let (uu, uv, vv, uw, vw) = (u.dot(u), u.dot(v), v.dot(v), u.dot(w), v.dot(w));
+    let den = uu * vv - uv * uv;
+    let mut best = point_segment(a[0], b[0], b[1])
+        .min(point_segment(a[1], b[0], b[1]))
+        .min(point_segment(b[0], a[0], a[1]))
+        .min(point_segment(b[1], a[0], a[1]));
+    if den > 1e-14 * uu * vv {
+        let (s, t) = ((uv * vw - vv * uw) / den, (uu * vw - uv * uw) / den);
+        if (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) {
+            best = best.min(((a[0] + s * u) - (b[0] + t * v)).length_squared());
+        }
+    }
+    best
+}
+
+fn edges_of(faces: &[[u32; 3]]) -> Vec<[u32; 2]> {
+    let mut edges: Vec<[u32; 2]> =
+        faces.iter().flat_map(|f| (0..3).map(move |k| [f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3])])).collect();
+    edges.sort_unstable();
+    edges.dedup();
+    edges
+}
+
+/// The smallest distance between a vertex and a triangle, or two edges, of one surface that
+/// are not neighbours at rest (their rest distance is above `apart`): all pairs, no culling.
+fn closest_approach(x: &[DVec3], rest: &[DVec3], faces: &[[u32; 3]], apart: f64) -> f64 {
+    let edges = edges_of(faces);
+    let at = |y: &[DVec3], f: &[u32; 3]| f.map(|v| y[v as usize]);
+    let seg = |y: &[DVec3], e: &[u32; 2]| e.map(|v| y[v as usize]);
+    let mut best = f64::INFINITY;
+    for (v, p) in x.iter().enumerate() {
+        for f in faces.iter().filter(|f| !f.contains(&(v as u32))) {
+            if point_triangle(rest[v], at(rest, f)).sqrt() > apart {
+                best = best.min(point_triangle(*p, at(x, f)).sqrt());
+            }
+        }
+    }
+    for (i, a) in edges.iter().enumerate() {
+        for b in edges[i + 1..].iter().filter(|b| !b.iter().any(|v| a.contains(v))) {
+            if segment_segment(seg(rest, a), seg(rest, b)).sqrt() > apart {
+                best = best.min(segment_segment(seg(x, a), seg(x, b)).sqrt());
+            }
+        }
+    }
+    best
+}
+
+/// The smallest distance between two surfaces: vertices against triangles both ways, and
+/// edges against edges.
+fn closest_between(a: (&[DVec3], &[[u32; 3]]), b: (&[DVec3], &[[u32; 3]])) -> f64 {
+    let one_way = |(xa, _): (&[DVec3], &[[u32; 3]]), (xb, fb): (&[DVec3], &[[u32; 3]])| {
+        xa.iter()
+            .flat_map(|p| fb.iter().map(move |f| point_triangle(*p, f.map(|v| xb[v as usize]))))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (ea, eb) = (edges_of(a.1), edges_of(b.1));
+    let edges = ea
+        .iter()
+        .flat_map(|e| eb.iter().map(move |g| segment_segment(e.map(|v| a.0[v as usize]), g.map(|v| b.0[v as usize]))))
+        .fold(f64::INFINITY, f64::min);
+    one_way(a, b).min(one_way(b, a)).min(edges).sqrt()
+}
+
+/// The layers' surfaces as one mesh (for the crossing test between them).
+fn merged(parts: &[(Vec<DVec3>, Vec<[u32; 3]>)]) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let (mut x, mut faces) = (Vec::new(), Vec::new());
+    for (px, pf) in parts {
+        let base = x.len() as u32;
+        x.extend_from_slice(px);
+        faces.extend(pf.iter().map(|f| f.map(|v| v + base)));
+    }
+    (x, faces)
+}
+
+/// Runs the scene and measures each frame with `measure` (the simulation after the step).
+/// Asserts every frame converges.
+fn every_frame<T>(scene: &skinsim::scene::BuiltScene, mut measure: impl FnMut(&mut Simulation) -> T) -> Vec<T> {
+    let mut sim = Simulation::new(scene);
+    let mut out = Vec::new();
+    for frame in 1..=scene.scene.frames {
+        let s = sim.step();
+        assert!(sim.failure().is_none(), "frame {frame}: {:?}", sim.failure());
+        assert!(s.patches.iter().all(|p| p.outcome.converged), "frame {frame} converges");
+        out.push(measure(&mut sim));
+    }
+    out
+}
+
+/// A strip folded onto itself (`scenes/examples/fold_strip.ron`, its upper ply's end held and
+/// carried down through the lower ply): with contact, no frame has a crossing or two plies
+/// closer than the 0.3 mm thickness; without, the plies cross.
+#[test]
+fn a_strip_folded_onto_itself_never_passes_through() {
+    let rel = "examples/fold_strip.ron";
+    let thickness = 0.3e-3;
+    // (pairs within 1.5 mm at rest are neighbours on the strip, 1 mm cells: not its plies)
+    let apart = 1.5e-3;
+    let measure = |sim: &mut Simulation| {
+        let (_, x, faces) = sim.layer_surface("strip", "strip");
+        (x, faces)
+    };
+    let rest_of =
+        |scene: &skinsim::scene::BuiltScene| -> Vec<DVec3> { scene.patches[0].layers[0].mesh.rest().to_vec() };
+    let with_scene = load(rel);
+    let rest = rest_of(&with_scene);
+    for (frame, (x, faces)) in every_frame(&with_scene, measure).iter().enumerate() {
+        assert_eq!(crossing_pairs(faces, x).len(), 0, "frame {}: crossing faces", frame + 1);
+        let closest = closest_approach(x, &rest, faces, apart);
+        assert!(closest > thickness, "frame {}: {closest} m is below the thickness", frame + 1);
+    }
+    let without = variant(rel, &[("contact: Some((thickness: 0.3, d_hat: 0.15)),", "")]);
+    let crossed = every_frame(&without, measure).iter().filter(|(x, f)| !crossing_pairs(f, x).is_empty()).count();
+    assert!(crossed > 0, "without contact the plies pass through each other");
+}
+
+/// A sheet pressed onto a sphere (`scenes/examples/press_sphere.ron`): with contact, no sheet
+/// face crosses a sphere face and the sheet stays more than half its 0.3 mm thickness from the
+/// sphere at every frame; without, the sphere passes through the sheet.
+#[test]
+fn a_sheet_pressed_onto_a_sphere_drapes_over_it() {
+    let rel = "examples/press_sphere.ron";
+    let measure = |sim: &mut Simulation| {
+        let (_, xs, fs) = sim.layer_surface("sheet", "sheet");
+        let (_, xb, fb) = sim.layer_surface("sheet", "sphere");
+        let (x, faces) = merged(&[(xs.clone(), fs.clone()), (xb.clone(), fb.clone())]);
+        (crossing_pairs(&faces, &x).len(), closest_between((&xs, &fs), (&xb, &fb)))
+    };
+    for (frame, &(crossing, closest)) in every_frame(&load(rel), measure).iter().enumerate() {
+        assert_eq!(crossing, 0, "frame {}: the sheet crosses the sphere", frame + 1);
+        assert!(closest > 0.15e-3, "frame {}: {closest} m from the sphere", frame + 1);
+    }
+    let without = variant(rel, &[("contact: Some((thickness: 0.3, d_hat: 0.15)),", "")]);
+    let crossed = every_frame(&without, measure).iter().filter(|m| m.0 > 0).count();
+    assert!(crossed > 0, "without contact the sphere passes through the sheet");
+}
