@@ -180,3 +180,127 @@ fn a_sheet_pressed_onto_a_sphere_drapes_over_it() {
     let crossed = every_frame(&without, measure).iter().filter(|m| m.0 > 0).count();
     assert!(crossed > 0, "without contact the sphere passes through the sheet");
 }
+
+/// Determinism: the folded strip (contact active from frame 5) gives the same bits with 1 and
+/// 2 threads.
+#[test]
+fn contact_gives_the_same_bits_whatever_the_thread_count() {
+    let scene = variant("examples/fold_strip.ron", &[("frames: 8,", "frames: 6,")]);
+    let bits: Vec<Vec<[u64; 3]>> = [1, 2]
+        .iter()
+        .map(|&n| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+            pool.install(|| {
+                let mut sim = Simulation::new(&scene);
+                let pairs = every_frame_of(&mut sim, &scene);
+                assert!(pairs > 0, "contact is active");
+                sim.layer_surface("strip", "strip").1.iter().map(|p| p.to_array().map(f64::to_bits)).collect()
+            })
+        })
+        .collect();
+    assert!(bits[0] == bits[1], "1 and 2 threads differ");
+}
+
+/// Steps every frame; returns the most active pairs in a frame.
+fn every_frame_of(sim: &mut Simulation, scene: &skinsim::scene::BuiltScene) -> usize {
+    let mut most = 0;
+    for _ in 0..scene.scene.frames {
+        let s = sim.step();
+        assert!(sim.failure().is_none(), "{:?}", sim.failure());
+        most = most.max(s.patches.iter().filter_map(|p| p.outcome.contact).map(|c| c.active_pairs).max().unwrap_or(0));
+    }
+    most
+}
+
+/// A small patch with contact, for the refusals below.
+const CONTACT: &str = r#"Scene(
+    name: "contact",
+    frames: 1,
+    patches: [
+        Patch(
+            name: "p",
+            layers: [
+                Layer(name: "film", kind: Shell, mesh: Grid(size: (4.0, 2.0), cells: (4, 2)),
+                      material: (young: 1.0, poisson: 0.3, thickness: 0.1), bending: (model: Tan)),
+            ],
+            drivers: [Pin(layer: "film", select: Sides([XMin]))],
+            contact: Some((thickness: 0.1, d_hat: 0.05)),
+        ),
+    ],
+)"#;
+
+fn refused(text: &str) -> skinsim::scene::SceneError {
+    load_str(text, std::path::Path::new("scene.ron")).expect_err("should be refused")
+}
+
+#[test]
+fn bad_contact_input_is_refused_naming_the_field() {
+    load_str(CONTACT, std::path::Path::new("scene.ron")).unwrap();
+    let e = refused(&CONTACT.replace("thickness: 0.1, d_hat", "thickness: 0.0, d_hat"));
+    mentions(&e, &["patches[0] (\"p\").contact.thickness", "positive"]);
+    let e = refused(&CONTACT.replace("d_hat: 0.05", "d_hat: -1.0"));
+    mentions(&e, &["patches[0] (\"p\").contact.d_hat", "positive"]);
+    let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, friction: 0.5)"));
+    mentions(&e, &["patches[0] (\"p\").contact.friction", "not supported yet"]);
+    let e = refused(
+        &CONTACT
+            .replace("frames: 1,", "frames: 1, frame_time: 0.01,")
+            .replace("name: \"p\",", "name: \"p\", solver: (mode: ImplicitEuler),"),
+    );
+    mentions(&e, &["patches[0] (\"p\").contact", "dynamics"]);
+    let e = refused(&CONTACT.replace("contact: Some((thickness: 0.1, d_hat: 0.05)),", "contact: Some((d_hat: 0.05)),"));
+    mentions(&e, &["thickness"]);
+}
+
+/// A start state whose shells already cross is refused, naming both faces and their layers.
+#[test]
+fn a_start_state_that_crosses_is_refused() {
+    let dir = scratch_dir("contact");
+    // Two unit squares through each other: one flat at z = 0, one standing across it.
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+    let standing = "v 0.5 -0.2 -0.5\nv 0.5 1.2 -0.5\nv 0.5 1.2 0.5\nv 0.5 -0.2 0.5\nvt 0 0\nvt 1.4 0\nvt 1.4 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+    std::fs::write(dir.join("flat.obj"), obj).unwrap();
+    std::fs::write(dir.join("standing.obj"), standing).unwrap();
+    let text = CONTACT.replace(
+        r#"Layer(name: "film", kind: Shell, mesh: Grid(size: (4.0, 2.0), cells: (4, 2)),"#,
+        r#"Layer(name: "standing", kind: Kinematic, mesh: Obj(path: "standing.obj")),
+                Layer(name: "film", kind: Shell, mesh: Obj(path: "flat.obj"),"#,
+    );
+    let e = load_str(&text, &dir.join("scene.ron")).expect_err("crossing start");
+    mentions(&e, &["patches[0] (\"p\").contact", "already crosses", "layer \"film\"", "layer \"standing\""]);
+}
+
+/// The KCK18 creature with contact on its skin (`scenes/kck18/creature_contact_quick.ron`):
+/// every frame converges, the skin's folds at the bent waist touch (active pairs), and no frame
+/// has a crossing or two parts of the skin closer than its 1 mm thickness. The same scene
+/// without contact (`creature_quick.ron`) does cross.
+#[test]
+fn the_creature_skin_folds_without_passing_through() {
+    let scene = load("kck18/creature_contact_quick.ron");
+    let rest = scene.patches[0].layers[1].mesh.rest().to_vec();
+    let mut most = 0;
+    let mut sim = Simulation::new(&scene);
+    for frame in 1..=scene.scene.frames {
+        let s = sim.step();
+        assert!(sim.failure().is_none(), "frame {frame}: {:?}", sim.failure());
+        let c = s.patches[0].outcome.contact.expect("a contact report");
+        most = most.max(c.active_pairs);
+        assert!(s.patches[0].outcome.converged && c.min_distance_ratio > 1.0, "frame {frame}: {c:?}");
+        let (_, x, faces) = sim.layer_surface("creature", "skin");
+        assert!(crossing_pairs(&faces, &x).is_empty(), "frame {frame}: crossing faces");
+        // (neighbours within 1.5 mm at rest are excluded; the mesh's edges are about 10 mm)
+        let closest = closest_approach(&x, &rest, &faces, 1.5e-3);
+        assert!(closest > 1e-3, "frame {frame}: {closest} m");
+    }
+    assert!(most > 100, "the folds touch: {most} active pairs at most");
+    let without = load("kck18/creature_quick.ron");
+    let mut sim = Simulation::new(&without);
+    let crossed = (0..without.scene.frames)
+        .filter(|_| {
+            sim.step();
+            let (_, x, faces) = sim.layer_surface("creature", "skin");
+            !crossing_pairs(&faces, &x).is_empty()
+        })
+        .count();
+    assert!(crossed > 0, "without contact the skin passes through itself");
+}

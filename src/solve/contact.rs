@@ -19,7 +19,7 @@ use super::newton::newton;
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::settings::SolverSettings;
-use crate::contact::{ContactReport, ContactState};
+use crate::contact::{gather, ContactReport, ContactState};
 
 /// The contact kind's index among the registered terms.
 fn kind(packed: &PackedPatch) -> usize {
@@ -35,11 +35,18 @@ pub(super) fn fit(
     chol: &mut CholeskySolver,
     settings: &SolverSettings,
 ) -> bool {
-    let k = kind(packed);
-    let terms = packed.elements.terms();
-    let covered = pattern.covers(terms[k]);
+    // Only the pairs active at the state have derivatives: the others scatter nowhere (NONE),
+    // so a pair listed but not yet near needs no new analysis.
+    let (x, pairs) = (&packed.state.x, &packed.elements.contacts.pairs);
+    let active: Vec<bool> = pairs.iter().map(|p| p.barrier.active(p.squared_distance(&gather(x, &p.v)))).collect();
+    let covered = pairs.iter().zip(&active).all(|(p, &a)| !a || pattern.covers_stencil(&p.v));
     if covered {
-        pattern.remap(k, terms[k]);
+        let map = pairs
+            .iter()
+            .zip(&active)
+            .flat_map(|(p, &a)| if a { pattern.element_map(&p.v) } else { vec![NONE; super::scatter::pairs(4)] })
+            .collect();
+        pattern.maps[kind(packed)] = map;
     }
     let state = packed.contact.as_mut().expect("a patch with contact");
     if covered {
@@ -121,9 +128,10 @@ pub(super) fn clear_path(packed: &PackedPatch, from: &[DVec3], to: &[DVec3]) -> 
 const MAX_SUBSTEPS: u32 = 64;
 
 /// A frame's solve with contact. Prescribed coordinates (a body in the patch, held skin) jump to
-/// their targets between frames, and a jump may pass through the skin. They move instead from
-/// where the last solve left them, as far towards their targets as no pair crosses (additive
-/// CCD against the skin at rest where it is), and the skin is solved there; repeated until they
+/// their targets between frames, and free ones to Newton's first guess; a jump may pass through
+/// the skin. Everything moves instead from where the last solve left it, as far towards the
+/// frame's start as no pair crosses (additive CCD), and the skin is solved there; then the
+/// prescribed coordinates go on towards their targets, solving after each step, until they
 /// arrive. Quasistatic only (the scene refuses contact with dynamics).
 pub(super) fn continuation(
     packed: &mut PackedPatch,
@@ -132,22 +140,22 @@ pub(super) fn continuation(
     settings: &SolverSettings,
     dt: f64,
 ) -> Result<FrameOutcome, SolveError> {
+    // The frame's start: prescribed coordinates at their targets, free ones at Newton's first
+    // guess (the last frame's end, or moved with the body under KCK18 anchors).
     let target = packed.state.x.clone();
     let state = packed.contact.as_mut().expect("a patch with contact");
     state.begin_frame();
     let from = if state.last.len() == target.len() { state.last.clone() } else { state.surface.rest_positions() };
-    // Prescribed coordinates start where they were; free ones where the last frame left them.
-    for (v, x) in packed.state.x.iter_mut().enumerate() {
-        for k in (0..3).filter(|&k| packed.state.fixed[v][k]) {
-            x[k] = from[v][k];
-        }
-    }
+    // Everything starts where the last solve left it; the first step moves it all towards the
+    // start (the guess may jump as far as the body does), later ones the prescribed only.
+    packed.state.x.copy_from_slice(&from);
     let mut total = FrameOutcome::default();
+    let mut first = true;
     loop {
         let x = packed.state.x.clone();
-        // (the prescribed coordinates' way to their targets; free ones stay)
-        let d: Vec<DVec3> =
-            target_with_free(&target, &x, &packed.state.fixed).iter().zip(&x).map(|(t, p)| *t - *p).collect();
+        let goal = if first { target.clone() } else { target_with_free(&target, &x, &packed.state.fixed) };
+        first = false;
+        let d: Vec<DVec3> = goal.iter().zip(&x).map(|(t, p)| *t - *p).collect();
         let end: Vec<DVec3> = x.iter().zip(&d).map(|(p, d)| *p + *d).collect();
         let state = packed.contact.as_mut().expect("a patch with contact");
         let pairs = state.pairs_near(&x, Some(&end), &packed.state.fixed);
@@ -158,7 +166,7 @@ pub(super) fn continuation(
             *p += alpha * *d;
         }
         if alpha >= 1.0 {
-            packed.state.x = target_with_free(&target, &packed.state.x, &packed.state.fixed);
+            packed.state.x = target_with_free(&goal, &packed.state.x, &packed.state.fixed);
         }
         packed.elements.contacts.pairs = state.pairs_near(&packed.state.x, None, &packed.state.fixed);
         packed.elements.contacts.stiffness = state.stiffness;
@@ -170,8 +178,9 @@ pub(super) fn continuation(
             state.last = packed.state.x.clone();
             return Ok(total);
         }
-        // (a step below a millionth: the skin is squeezed between held parts)
-        if state.report.substeps >= MAX_SUBSTEPS || alpha < 1e-6 {
+        // (a step of the prescribed motion below a millionth: the skin is squeezed between
+        // held parts; the first step may be short, its free part is left to Newton)
+        if state.report.substeps >= MAX_SUBSTEPS || (state.report.substeps > 1 && alpha < 1e-6) {
             return Err(SolveError::Blocked { substeps: state.report.substeps });
         }
     }

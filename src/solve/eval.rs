@@ -226,4 +226,59 @@ mod tests {
             }
         }
     }
+
+    /// Issue 64: contact pairs scatter their exact derivatives through the pattern (a point
+    /// over a triangle, two crossing edges, one vertex held), and the stability test's inertia
+    /// counts the barrier's negative curvature as a dense eigen-solve does.
+    #[test]
+    fn contact_pairs_assemble_their_derivatives_and_inertia() {
+        use crate::contact::{Barrier, ContactPairs, Pair, Primitives};
+        let barrier = Barrier { offset: 0.1, reach: 0.3 };
+        let x = vec![
+            DVec3::new(0.3, 0.3, 0.25),
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.1, 0.0),
+            DVec3::new(0.2, 0.9, 0.05),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(3.0, 0.1, 0.0),
+            DVec3::new(2.4, -0.5, 0.3),
+            DVec3::new(2.6, 0.5, 0.25),
+        ];
+        let pairs = vec![
+            Pair { v: [0, 1, 2, 3], kind: Primitives::PointTriangle, barrier, eps: 0.0 },
+            Pair { v: [4, 5, 6, 7], kind: Primitives::EdgeEdge, barrier, eps: 1e-3 },
+        ];
+        let el = Elements { contacts: ContactPairs { pairs, stiffness: 3.0 }, ..Default::default() };
+        let mut fixed = vec![[false; 3]; x.len()];
+        fixed[1] = [true; 3];
+        let tie: Vec<(u32, [bool; 3])> = (0..x.len() as u32).map(|i| (i, [false; 3])).collect();
+        let pattern = Pattern::build(&x, &fixed, &tie, &el);
+        let (mut grad, mut values) = (vec![0.0; pattern.n], vec![0.0; pattern.nnz()]);
+        let a = assemble(&el, &pattern, &x, Filter::Exact, &mut grad, &mut values);
+        assert!(a.parts.contact > 0.0 && a.parts.total() == a.parts.contact);
+        assert_derivatives(&el, &pattern, &x, |y| energy(&el, y).contact, &grad, &values);
+        let mut dense = nalgebra::DMatrix::<f64>::zeros(pattern.n, pattern.n);
+        for c in 0..pattern.n {
+            let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
+            for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
+                dense[(r as usize, c)] = v;
+                dense[(c, r as usize)] = v;
+            }
+        }
+        let eigen = nalgebra::SymmetricEigen::new(dense).eigenvalues;
+        let scale = eigen.iter().fold(0.0f64, |m, l| m.max(l.abs()));
+        let negative = eigen.iter().filter(|&&l| l < -1e-12 * scale).count();
+        assert!(negative > 0, "the exact barrier Hessian is indefinite here: {eigen}");
+        let mut chol = super::super::linear::CholeskySolver::analyze(&pattern);
+        // (the barrier Hessian of one pair has rank well below 12: shift the zero eigenvalues
+        // up so that the LDL^T sees only the signs that matter)
+        let mut shifted = values.clone();
+        for &d in &pattern.diag {
+            shifted[d as usize] += 1e-9 * scale;
+        }
+        match super::super::stability::test(&pattern, &mut chol, &shifted).expect("an LDL^T") {
+            super::super::stability::Verdict::Stable => assert_eq!(negative, 0),
+            super::super::stability::Verdict::Unstable { negative: k, .. } => assert_eq!(k, negative),
+        }
+    }
 }

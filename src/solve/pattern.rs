@@ -143,33 +143,10 @@ impl Pattern {
         p
     }
 
-    /// Whether every coupling of the term's stencils is an entry (its symbolic analysis holds).
-    pub(crate) fn covers(&self, term: &dyn super::element::Term) -> bool {
-        let mut all = true;
-        term.stencils(&mut |v| {
-            all = all
-                && v.iter().all(|&a| {
-                    v.iter().all(|&b| {
-                        (0..3).all(|i| {
-                            (0..3).all(|j| {
-                                let (da, db) = (self.dof[3 * a as usize + i], self.dof[3 * b as usize + j]);
-                                da == NONE || db == NONE || self.position_of(da, db).is_some()
-                            })
-                        })
-                    })
-                })
-        });
-        all
-    }
-
-    /// Recomputes kind k's scatter map (its list changed inside the pattern).
-    pub(crate) fn remap(&mut self, k: usize, term: &dyn super::element::Term) {
-        let mut map = Vec::new();
-        term.stencils(&mut |v| match term.coupling() {
-            Coupling::Full => map.extend(self.element_map(v)),
-            Coupling::PerCoordinate => map.extend(self.stencil_map(v)),
-        });
-        self.maps[k] = map;
+    /// Whether every coupling of a stencil's vertices is an entry (its symbolic analysis holds).
+    pub(crate) fn covers_stencil(&self, v: &[u32]) -> bool {
+        let dofs: Vec<u32> = v.iter().flat_map(|&a| (0..3).map(move |i| self.dof[3 * a as usize + i])).collect();
+        dofs.iter().all(|&da| dofs.iter().all(|&db| da == NONE || db == NONE || self.position_of(da, db).is_some()))
     }
 
     /// Position of the (symmetric) entry of DOFs a and b, None outside the pattern.
@@ -184,7 +161,7 @@ impl Pattern {
         self.position_of(a, b).expect("pattern holds every element pair")
     }
 
-    fn element_map(&self, verts: &[u32]) -> Vec<u32> {
+    pub(crate) fn element_map(&self, verts: &[u32]) -> Vec<u32> {
         let n = 3 * verts.len();
         let mut out = Vec::with_capacity(n * (n + 1) / 2);
         for p in 0..n {
