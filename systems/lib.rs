@@ -10,6 +10,7 @@ pub mod kernels;
 mod layer_arrays;
 pub mod log;
 pub mod log_anchors;
+pub mod log_contact;
 mod log_mesh;
 pub mod log_read;
 pub mod motion;

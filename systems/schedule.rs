@@ -9,6 +9,7 @@ use skinsim::model::{Anchor, Kernel, PatchCaptures, PatchMotion, RemeshSettings,
 
 use crate::log::{log_frame, wants_logging, RerunSink};
 use crate::log_anchors::log_anchors;
+use crate::log_contact::log_contact;
 use crate::{anchors, assemble, capture, kernels, motion, properties, remesh, settle, solve, writeback};
 
 #[derive(ScheduleLabel, Debug, Clone, PartialEq, Eq, Hash)]
@@ -53,7 +54,12 @@ pub fn build_schedule() -> Schedule {
     ));
     s.add_systems(timed(
         Stage::Log,
-        (log_frame, log_anchors.run_if(resource_exists::<RerunSink>).run_if(any_with_component::<Anchor>)).chain(),
+        (
+            log_frame,
+            log_anchors.run_if(resource_exists::<RerunSink>).run_if(any_with_component::<Anchor>),
+            log_contact.run_if(resource_exists::<RerunSink>).run_if(any_with_component::<skinsim::model::Contact>),
+        )
+            .chain(),
     ));
     s
 }

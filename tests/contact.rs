@@ -248,6 +248,8 @@ fn bad_contact_input_is_refused_naming_the_field() {
             .replace("name: \"p\",", "name: \"p\", solver: (mode: ImplicitEuler),"),
     );
     mentions(&e, &["patches[0] (\"p\").contact", "dynamics"]);
+    let e = refused(&CONTACT.replace("name: \"p\",", "name: \"p\", solver: (globalization: TrustRegion),"));
+    mentions(&e, &["patches[0] (\"p\").contact", "TrustRegion"]);
     let e = refused(&CONTACT.replace("contact: Some((thickness: 0.1, d_hat: 0.05)),", "contact: Some((d_hat: 0.05)),"));
     mentions(&e, &["thickness"]);
 }

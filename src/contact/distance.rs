@@ -162,6 +162,31 @@ pub fn squared<D: DualNum<Primitive = f64> + Copy>(t: DistanceType, x: &[[D; 3];
     }
 }
 
+/// The pair's closest points (one on each primitive), for drawing.
+pub fn closest_points(kind: Primitives, x: &[[f64; 3]; 4]) -> ([f64; 3], [f64; 3]) {
+    let lerp = |a: [f64; 3], b: [f64; 3], t: f64| -> [f64; 3] { std::array::from_fn(|k| a[k] + t * (b[k] - a[k])) };
+    let along = |p: [f64; 3], a: [f64; 3], b: [f64; 3]| {
+        let e = sub3(b, a);
+        (dot3(sub3(p, a), e) / length2(e).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0)
+    };
+    match DistanceType::of(kind, x) {
+        DistanceType::PointPoint(i, j) => (x[i], x[j]),
+        DistanceType::PointEdge(p, a, b) => (x[p], lerp(x[a], x[b], along(x[p], x[a], x[b]))),
+        DistanceType::PointPlane => {
+            let n = cross3(sub3(x[2], x[1]), sub3(x[3], x[1]));
+            let h = dot3(sub3(x[0], x[1]), n) / length2(n);
+            (x[0], std::array::from_fn(|k| x[0][k] - h * n[k]))
+        }
+        DistanceType::LineLine => {
+            let (ea, eb, r) = (sub3(x[1], x[0]), sub3(x[3], x[2]), sub3(x[0], x[2]));
+            let (a, b, c, d, e) = (dot3(ea, ea), dot3(ea, eb), dot3(eb, eb), dot3(ea, r), dot3(eb, r));
+            let det = a * c - b * b;
+            let (s, t) = ((b * e - c * d) / det, (a * e - b * d) / det);
+            (lerp(x[0], x[1], s), lerp(x[2], x[3], t))
+        }
+    }
+}
+
 /// The pair's squared distance at f64 positions.
 pub fn squared_distance(kind: Primitives, x: &[[f64; 3]; 4]) -> f64 {
     squared(DistanceType::of(kind, x), x)

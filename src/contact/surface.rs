@@ -33,8 +33,8 @@ pub struct Surface {
     point_layer: Vec<u32>,
     /// Rest positions by packed vertex (the rule "near at rest is not contact").
     rest: Vec<DVec3>,
-    /// Whether primitives of different layers may touch (false where kernels bind the layers).
-    pub across_layers: bool,
+    /// Layer pairs (a < b) bound to each other (LK14 kernels): they do not touch.
+    bound: Vec<(u32, u32)>,
     /// Each layer's half thickness and whether it moves.
     half: Vec<f64>,
     moving: Vec<bool>,
@@ -44,11 +44,13 @@ pub struct Surface {
 
 impl Surface {
     /// From each layer's triangles (packed numbers) and the packed rest positions; `reach`:
-    /// the barrier's d_hat.
-    pub fn new(layers: &[SurfaceLayer], rest: Vec<DVec3>, reach: f64, across_layers: bool) -> Surface {
+    /// the barrier's d_hat; `bound`: pairs of layers (indices into `layers`) that kernels bind,
+    /// which do not touch.
+    pub fn new(layers: &[SurfaceLayer], rest: Vec<DVec3>, reach: f64, bound: &[(u32, u32)]) -> Surface {
         let half = layers.iter().map(|l| l.half_thickness).collect();
         let moving = layers.iter().map(|l| l.moving).collect();
-        let mut s = Surface { rest, reach, across_layers, half, moving, ..Default::default() };
+        let bound = bound.iter().map(|&(a, b)| (a.min(b), a.max(b))).collect();
+        let mut s = Surface { rest, reach, bound, half, moving, ..Default::default() };
         let mut edges = std::collections::BTreeMap::new();
         let mut points = std::collections::BTreeMap::new();
         for (l, layer) in layers.iter().enumerate() {
@@ -76,17 +78,21 @@ impl Surface {
     }
 
     /// Whether two primitives of layers a and b, with vertices `v` (the pair's four), may form
-    /// a pair: they share no vertex, their layers may touch, at least one moves, and, on one
-    /// layer, they are not already within the barrier's reach at rest (neighbours on one
-    /// surface, not two surfaces meeting).
+    /// a pair: they share no vertex, their layers are not bound, at least one moves, and, on one
+    /// layer, they are not within twice the barrier's reach at rest (neighbours on one surface,
+    /// not two surfaces meeting).
     fn admits(&self, kind: Primitives, v: &[u32; 4], a: u32, b: u32) -> bool {
         let shared = match kind {
             Primitives::PointTriangle => v[1..].contains(&v[0]),
             Primitives::EdgeEdge => v[0] == v[2] || v[0] == v[3] || v[1] == v[2] || v[1] == v[3],
         };
-        let layers = (a == b || self.across_layers) && (self.moving[a as usize] || self.moving[b as usize]);
-        // (two layers near each other at rest, a skin on a body, do touch)
-        let neighbours = a == b && self.barrier(a, b).active(squared_distance(kind, &self.rest4(v)));
+        let layers =
+            !self.bound.contains(&(a.min(b), a.max(b))) && (self.moving[a as usize] || self.moving[b as usize]);
+        // Neighbours on one layer: within twice the barrier's reach at rest (offset + d_hat),
+        // so that compressing the skin in its plane to half does not bring them into it. (Two
+        // layers near each other at rest, a skin on a body, do touch.)
+        let near = 2.0 * (self.barrier(a, b).offset + self.reach);
+        let neighbours = a == b && squared_distance(kind, &self.rest4(v)) < near * near;
         !shared && layers && !neighbours
     }
 

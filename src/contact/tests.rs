@@ -356,3 +356,42 @@ fn ccd_never_reports_an_impact_later_than_the_true_one() {
     }
     assert!(impacts.get() >= 25, "the suite meets impacts: {}", impacts.get());
 }
+
+/// The pair rules: two stacked layers 0.3 apart touch unless a kernel binds them; on one layer,
+/// neighbours within twice the barrier's reach at rest never pair; a body (not moving) pairs
+/// with the skin but not with another body.
+#[test]
+fn the_surface_pairs_what_may_touch() {
+    use glam::DVec3;
+    // Two 3 x 3 grids of unit cells (16 vertices each), 0.3 apart.
+    let grid = |base: u32| -> Vec<[u32; 3]> {
+        (0..3u32)
+            .flat_map(|i| (0..3u32).map(move |j| (i, j)))
+            .flat_map(|(i, j)| {
+                let v = |a: u32, b: u32| base + a * 4 + b;
+                [[v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)]]
+            })
+            .collect()
+    };
+    let rest: Vec<DVec3> =
+        (0..32u32).map(|k| DVec3::new(((k % 16) / 4) as f64, (k % 4) as f64, if k < 16 { 0.0 } else { 0.3 })).collect();
+    let layer = |base, moving| SurfaceLayer { triangles: grid(base), half_thickness: 0.05, moving };
+    let across = |s: &Surface| {
+        broad::candidates(s, &rest, None, 1.0)
+            .iter()
+            .filter(|p| p.v.iter().any(|&v| v < 16) && p.v.iter().any(|&v| v >= 16))
+            .count()
+    };
+    let free = Surface::new(&[layer(0, true), layer(16, true)], rest.clone(), 0.1, &[]);
+    assert!(across(&free) > 0, "unbound stacked layers pair");
+    let bound = Surface::new(&[layer(0, true), layer(16, true)], rest.clone(), 0.1, &[(1, 0)]);
+    assert_eq!(across(&bound), 0, "bound layers do not");
+    let bodies = Surface::new(&[layer(0, false), layer(16, false)], rest.clone(), 0.1, &[]);
+    assert!(broad::candidates(&bodies, &rest, None, 1.0).is_empty(), "two bodies do not");
+    // One layer, reach 0.3 + offset 0.1: neighbours within 0.8 at rest excluded, 1 apart kept.
+    let one = Surface::new(&[layer(0, true)], rest.clone(), 0.3, &[]);
+    for p in broad::candidates(&one, &rest, None, 2.0) {
+        let d = squared_distance(p.kind, &gather(&rest, &p.v)).sqrt();
+        assert!(d >= 0.8, "{p:?} at {d}");
+    }
+}

@@ -36,8 +36,8 @@ impl Builder {
         }
         // What the contact solve does not combine with yet.
         let refuse = |why: &str| Err(self.err(at.to_string(), format!("contact {why} is not supported yet")));
-        if !p.couplings.is_empty() {
-            return refuse("on a patch with kernels (couplings)");
+        if p.solver.globalization == crate::solve::Globalization::TrustRegion {
+            return refuse("with the TrustRegion globalization (its steps take no collision bound)");
         }
         if layers.iter().any(|l| l.remesh.is_some()) {
             return refuse("on a remeshed layer");

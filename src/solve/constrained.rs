@@ -16,6 +16,7 @@
 use glam::DVec3;
 
 use super::constraints::Constraints;
+use super::contact;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
@@ -42,7 +43,7 @@ const HELD_MODEL_ERROR: f64 = 10.0;
 
 pub(super) fn newton_kkt(
     packed: &mut PackedPatch,
-    pattern: &Pattern,
+    pattern: &mut Pattern,
     kkt: &mut KktSystem,
     settings: &SolverSettings,
     dt: f64,
@@ -66,10 +67,21 @@ pub(super) fn newton_kkt(
     // round-off: the converged state, a tiny step on, needs no stability test of its own (on the
     // localized pinch that test cost 1.6-2.3 s of every stable frame).
     let mut stable_step = false;
+    // Contact: the pair list changed since the pattern's maps were made (`contact::fit`).
+    let mut relisted = false;
     let result = loop {
         let filter = progress.filter();
-        let Assembly { parts, force_scale } =
-            evaluate(packed, pattern, filter, inertia.as_ref(), &mut grad, &mut values, &mut out);
+        if std::mem::take(&mut relisted) && contact::fit(packed, pattern) {
+            let count = kkt.factorizations;
+            *kkt = KktSystem::build(pattern, &constraints, settings.kkt);
+            (kkt.factorizations, kkt.held) = (count, held);
+            values.resize(pattern.nnz(), 0.0);
+        }
+        let mut assembly = evaluate(packed, pattern, filter, inertia.as_ref(), &mut grad, &mut values, &mut out);
+        if contact::stiffen(packed, pattern, &grad, &values) {
+            assembly = evaluate(packed, pattern, filter, inertia.as_ref(), &mut grad, &mut values, &mut out);
+        }
+        let Assembly { parts, force_scale } = assembly;
         let clock = std::time::Instant::now();
         let c: Vec<f64> = constraints.values(&packed.state.x).iter().flat_map(|v| v.to_array()).collect();
         constraints.jacobian(&packed.state.x, &mut jac);
@@ -111,8 +123,11 @@ pub(super) fn newton_kkt(
                     assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut grad, &mut values);
                 }
                 let point = KktPoint { h: &values, jac: &jac, grad: &grad, c: &c };
-                if let Some(x) = leave_saddle(packed, pattern, kkt, &constraints, &point, rho, &mut out) {
+                let escape = leave_saddle(packed, pattern, kkt, &constraints, &point, rho, &mut out);
+                // (with contact, an escape may not pass the surfaces through each other)
+                if let Some(x) = escape.filter(|x| contact::clear_path(packed, &packed.state.x, x)) {
                     packed.state.x = x;
+                    relisted |= contact::relist(packed);
                     out.escapes += 1;
                     out.converged = false;
                     stable_step = false;
@@ -178,7 +193,9 @@ pub(super) fn newton_kkt(
         let phi_merit = phi + rho * c_l1;
         let x0 = held.then(|| packed.state.x.clone());
         let target = phi_merit + ARMIJO * merit_slope;
-        if second_order_correction(packed, pattern, kkt, &constraints, &dx, target, &merit) {
+        // (with contact, every step goes through the line search and its collision bound)
+        let contact = packed.contact.is_some();
+        if !contact && second_order_correction(packed, pattern, kkt, &constraints, &dx, target, &merit) {
             out.iterations += 1;
             // Under a held load the state starts near the load's equilibrium; a full step that
             // the l1 merit accepts for meeting the kernels (a remesh resamples their sums) can
@@ -201,8 +218,9 @@ pub(super) fn newton_kkt(
             continue;
         }
         let tolerance = settings.tolerance;
-        let search =
-            Search { dx: &dx, slope: merit_slope, phi: phi_merit, residual, energy_scale, tolerance, first: 1.0 };
+        let first = contact::bound_step(packed, pattern, &dx);
+        relisted |= contact;
+        let search = Search { dx: &dx, slope: merit_slope, phi: phi_merit, residual, energy_scale, tolerance, first };
         let accepted = line_search(packed, pattern, search, &merit, &mut out);
         if !accepted {
             // A rejected step at the round-off floor still has to satisfy the constraints.

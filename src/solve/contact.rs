@@ -15,7 +15,6 @@ use super::error::SolveError;
 use super::iteration::mean_abs_diagonal;
 use super::iteration::FrameOutcome;
 use super::linear::CholeskySolver;
-use super::newton::newton;
 use super::packed::PackedPatch;
 use super::pattern::{Pattern, NONE};
 use super::settings::SolverSettings;
@@ -27,14 +26,9 @@ fn kind(packed: &PackedPatch) -> usize {
 }
 
 /// Puts the listed pairs inside the pattern: new scatter maps when their couplings are in it,
-/// else a new pattern and symbolic analysis. Returns whether the pattern was rebuilt (the
-/// caller's value buffers change size).
-pub(super) fn fit(
-    packed: &mut PackedPatch,
-    pattern: &mut Pattern,
-    chol: &mut CholeskySolver,
-    settings: &SolverSettings,
-) -> bool {
+/// else a new pattern. Returns whether the pattern was rebuilt: the caller then analyses it
+/// anew (`reanalyse`, or its KKT system) and resizes its value buffers.
+pub(super) fn fit(packed: &mut PackedPatch, pattern: &mut Pattern) -> bool {
     // Only the pairs active at the state have derivatives: the others scatter nowhere (NONE),
     // so a pair listed but not yet near needs no new analysis.
     let (x, pairs) = (&packed.state.x, &packed.elements.contacts.pairs);
@@ -55,11 +49,29 @@ pub(super) fn fit(
     }
     state.report.reanalyses += 1;
     *pattern = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
+    true
+}
+
+/// The symbolic analysis of a rebuilt pattern (its factorization count carried on).
+pub(super) fn reanalyse(chol: &mut CholeskySolver, pattern: &Pattern, settings: &SolverSettings) {
     let count = chol.factorizations;
     *chol = CholeskySolver::analyze(pattern);
     chol.set_precision(settings.precision);
     chol.factorizations = count;
-    true
+}
+
+/// What a frame's solve with contact runs between substeps: the patch's Newton loop and the
+/// analysis it keeps of the pattern.
+pub(super) trait Loop {
+    /// Analyses a rebuilt pattern.
+    fn reanalyse(&mut self, packed: &PackedPatch, pattern: &Pattern, settings: &SolverSettings);
+    fn solve(
+        &mut self,
+        packed: &mut PackedPatch,
+        pattern: &mut Pattern,
+        settings: &SolverSettings,
+        dt: f64,
+    ) -> Result<FrameOutcome, SolveError>;
 }
 
 /// After an assembly at the state: records the iterate and applies IPC's stiffness rule
@@ -136,7 +148,7 @@ const MAX_SUBSTEPS: u32 = 64;
 pub(super) fn continuation(
     packed: &mut PackedPatch,
     pattern: &mut Pattern,
-    chol: &mut CholeskySolver,
+    solver: &mut dyn Loop,
     settings: &SolverSettings,
     dt: f64,
 ) -> Result<FrameOutcome, SolveError> {
@@ -170,8 +182,10 @@ pub(super) fn continuation(
         }
         packed.elements.contacts.pairs = state.pairs_near(&packed.state.x, None, &packed.state.fixed);
         packed.elements.contacts.stiffness = state.stiffness;
-        fit(packed, pattern, chol, settings);
-        let out = newton(packed, pattern, chol, settings, dt)?;
+        if fit(packed, pattern) {
+            solver.reanalyse(packed, pattern, settings);
+        }
+        let out = solver.solve(packed, pattern, settings, dt)?;
         total.absorb(out);
         let state = packed.contact.as_mut().expect("a patch with contact");
         if alpha >= 1.0 {

@@ -35,8 +35,14 @@ fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result
             None => KktSystem::build(&pattern, &packed.constraints, settings.kkt),
         };
         let before = kkt.factorizations;
-        let result = newton_kkt(packed, &pattern, &mut kkt, settings, dt).map(|mut o| {
+        let result = if packed.contact.is_some() {
+            contact::continuation(packed, &mut pattern, &mut Kkt(&mut kkt), settings, dt)
+        } else {
+            newton_kkt(packed, &mut pattern, &mut kkt, settings, dt)
+        };
+        let result = result.map(|mut o| {
             o.factorizations = (kkt.factorizations - before) as u32;
+            o.contact = contact::report(packed);
             o
         });
         packed.cache.kkt = Some(kkt);
@@ -46,7 +52,7 @@ fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result
     chol.set_precision(settings.precision);
     let before = chol.factorizations;
     let result = if packed.contact.is_some() {
-        contact::continuation(packed, &mut pattern, &mut chol, settings, dt)
+        contact::continuation(packed, &mut pattern, &mut Direct(&mut chol), settings, dt)
     } else {
         newton(packed, &mut pattern, &mut chol, settings, dt)
     };
@@ -57,4 +63,42 @@ fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result
     });
     packed.cache.system = Some((pattern, chol));
     result
+}
+
+/// The unconstrained loop with its Cholesky analysis (`contact::continuation`'s substeps).
+struct Direct<'a>(&'a mut CholeskySolver);
+
+impl contact::Loop for Direct<'_> {
+    fn reanalyse(&mut self, _packed: &PackedPatch, pattern: &Pattern, settings: &SolverSettings) {
+        contact::reanalyse(self.0, pattern, settings);
+    }
+    fn solve(
+        &mut self,
+        packed: &mut PackedPatch,
+        pattern: &mut Pattern,
+        settings: &SolverSettings,
+        dt: f64,
+    ) -> Result<FrameOutcome, SolveError> {
+        newton(packed, pattern, self.0, settings, dt)
+    }
+}
+
+/// The constrained loop with its KKT system.
+struct Kkt<'a>(&'a mut KktSystem);
+
+impl contact::Loop for Kkt<'_> {
+    fn reanalyse(&mut self, packed: &PackedPatch, pattern: &Pattern, settings: &SolverSettings) {
+        let count = self.0.factorizations;
+        *self.0 = KktSystem::build(pattern, &packed.constraints, settings.kkt);
+        self.0.factorizations = count;
+    }
+    fn solve(
+        &mut self,
+        packed: &mut PackedPatch,
+        pattern: &mut Pattern,
+        settings: &SolverSettings,
+        dt: f64,
+    ) -> Result<FrameOutcome, SolveError> {
+        newton_kkt(packed, pattern, self.0, settings, dt)
+    }
 }

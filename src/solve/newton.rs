@@ -49,7 +49,8 @@ pub(super) fn newton(
 
     loop {
         let filter = it.progress.filter();
-        if std::mem::take(&mut it.relisted) && contact::fit(packed, pattern, chol, settings) {
+        if std::mem::take(&mut it.relisted) && contact::fit(packed, pattern) {
+            contact::reanalyse(chol, pattern, settings);
             it.values.resize(pattern.nnz(), 0.0);
         }
         let mut assembly =

@@ -13,6 +13,7 @@ pub(super) fn rebuild(
     index: &PackedIndex,
     patch_layers: &PatchLayers,
     contact: Option<&Contact>,
+    kernels: Option<&PatchKernels>,
     layers: &Query<LayerItems>,
     items: &ElementItems,
 ) {
@@ -22,28 +23,41 @@ pub(super) fn rebuild(
     };
     // Shell layers (the skin, half its thickness on each side) and kinematic ones (bodies in
     // the patch: obstacles).
-    let surfaces: Vec<SurfaceLayer> = patch_layers
+    let (entities, surfaces): (Vec<Entity>, Vec<SurfaceLayer>) = patch_layers
         .entities()
         .iter()
-        .filter_map(|&l| layers.get(l).ok())
-        .filter(|l| matches!(l.layer.kind, LayerKind::Shell | LayerKind::Kinematic) && !l.anchor_body)
-        .filter_map(|l| l.faces.map(|f| (f, l.layer.kind == LayerKind::Shell)))
-        .map(|(faces, shell)| SurfaceLayer {
-            half_thickness: if shell { 0.5 * c.thickness } else { 0.0 },
-            moving: shell,
-            triangles: faces
-                .entities()
-                .iter()
-                .filter_map(|&f| items.faces.get(f).ok())
-                .filter_map(|(fv, _, _)| {
-                    let v = fv.0.map(|e| index.index.get(&e).copied());
-                    v.iter().all(Option::is_some).then(|| v.map(Option::unwrap))
-                })
-                .collect(),
+        .filter_map(|&l| layers.get(l).ok().map(|item| (l, item)))
+        .filter(|(_, l)| matches!(l.layer.kind, LayerKind::Shell | LayerKind::Kinematic) && !l.anchor_body)
+        .filter_map(|(e, l)| l.faces.map(|f| (e, f, l.layer.kind == LayerKind::Shell)))
+        .map(|(e, faces, shell)| {
+            (
+                e,
+                SurfaceLayer {
+                    half_thickness: if shell { 0.5 * c.thickness } else { 0.0 },
+                    moving: shell,
+                    triangles: faces
+                        .entities()
+                        .iter()
+                        .filter_map(|&f| items.faces.get(f).ok())
+                        .filter_map(|(fv, _, _)| {
+                            let v = fv.0.map(|e| index.index.get(&e).copied());
+                            v.iter().all(Option::is_some).then(|| v.map(Option::unwrap))
+                        })
+                        .collect(),
+                },
+            )
         })
+        .unzip();
+    // Layers a kernel binds do not touch (LK14: the skin oscillates about what it is bound to).
+    let at = |e: Entity| entities.iter().position(|&l| l == e).map(|i| i as u32);
+    let bound: Vec<(u32, u32)> = kernels
+        .map_or(&[][..], |k| k.entities())
+        .iter()
+        .filter_map(|&k| items.kernels.get(k).ok())
+        .filter_map(|(k, _)| Some((at(k.upper)?, at(k.lower)?)))
         .collect();
     let rest = index.vertices.iter().map(|&v| items.rest.get(v).expect("vertex").0).collect();
-    let surface = Surface::new(&surfaces, rest, c.reach, true);
+    let surface = Surface::new(&surfaces, rest, c.reach, &bound);
     let mut state = ContactState::new(surface, c.reach);
     if let Some(old) = packed.contact.take() {
         (state.stiffness, state.stiffness_min, state.stiffness_max) =

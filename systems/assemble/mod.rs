@@ -76,7 +76,7 @@ pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, 
         if rebuilt {
             rebuild::rebuild(packed, index, patch_layers, bodies, &layers, &items);
             anchor_springs::rebuild(packed, index, patch_layers, &layers, &items.anchors);
-            contact_surface::rebuild(packed, index, patch_layers, contact, &layers, &items);
+            contact_surface::rebuild(packed, index, patch_layers, contact, patch_kernels, &layers, &items);
             index.key = key;
         }
         if let Some(pk) = patch_kernels {
