@@ -23,6 +23,35 @@ fn aabb(vertices: &[u32], x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Aabb {
     Aabb::new(Vector::new(lo.x, lo.y, lo.z), Vector::new(hi.x, hi.y, hi.z))
 }
 
+/// For each point the triangles whose boxes at `x`, grown by `r`, hold it, and for each edge
+/// the later edges whose boxes, each grown by r / 2, overlap its own: ascending, no rules
+/// applied (`Surface`'s neighbours at rest).
+pub(super) fn overlaps(s: &Surface, x: &[DVec3], r: f64) -> (Vec<Vec<u32>>, Vec<Vec<u32>>) {
+    let tri_boxes: Vec<Aabb> = s.triangles.par_iter().map(|t| aabb(t, x, None, r)).collect();
+    let tris = Bvh::from_leaves(BvhBuildStrategy::default(), &tri_boxes);
+    let points = s
+        .points
+        .par_iter()
+        .map(|&p| {
+            let query = aabb(&[p], x, None, 0.0);
+            let mut found: Vec<u32> = tris.intersect_aabb(&query).collect();
+            found.sort_unstable();
+            found
+        })
+        .collect();
+    let edge_boxes: Vec<Aabb> = s.edges.par_iter().map(|e| aabb(e, x, None, 0.5 * r)).collect();
+    let edges = Bvh::from_leaves(BvhBuildStrategy::default(), &edge_boxes);
+    let later = (0..s.edges.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut found: Vec<u32> = edges.intersect_aabb(&edge_boxes[i]).filter(|&j| j as usize > i).collect();
+            found.sort_unstable();
+            found
+        })
+        .collect();
+    (points, later)
+}
+
 /// Every admitted pair (`Surface::admits`) whose boxes, at `x` or swept from `x` to `x1`, come
 /// within `r` of each other: point-triangle pairs first, then edge-edge, each in index order.
 pub fn candidates(s: &Surface, x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Vec<Pair> {

@@ -60,6 +60,10 @@ pub struct ContactState {
     pub report: ContactReport,
     /// The state at the end of the last solve: where prescribed vertices move from.
     pub last: Vec<DVec3>,
+    /// Where the last broad phase started: while every vertex stays within margin / 2 of it,
+    /// no pair it left out can come within offset + d_hat (a Verlet list's rule), and its
+    /// list still holds every pair that can be active or crossed.
+    pub listed_at: Vec<DVec3>,
 }
 
 /// Per frame: what contact did (the report's `contact` object).
@@ -104,9 +108,21 @@ impl ContactState {
     /// broad phase.
     pub fn pairs_near(&mut self, x: &[DVec3], x1: Option<&[DVec3]>, fixed: &[[bool; 3]]) -> Vec<Pair> {
         self.report.broad_phases += 1;
+        self.listed_at = x.to_vec();
         let mut pairs = broad::candidates(&self.surface, x, x1, self.list_reach());
         pairs.retain(|p| p.v.iter().any(|&v| fixed[v as usize] != [true; 3]));
         pairs
+    }
+
+    /// Whether the last list still covers the states from `x` to `x1` (every vertex within
+    /// margin / 2 of where it was listed, at both ends of the straight step: so along it too).
+    pub fn still_listed(&self, x: &[DVec3], x1: &[DVec3]) -> bool {
+        let r2 = (0.5 * self.margin).powi(2);
+        self.listed_at.len() == x.len()
+            && x.iter()
+                .zip(x1)
+                .zip(&self.listed_at)
+                .all(|((a, b), c)| a.distance_squared(*c) <= r2 && b.distance_squared(*c) <= r2)
     }
 
     /// Starts a frame's record (the stiffness carries over).

@@ -40,6 +40,10 @@ pub struct Surface {
     moving: Vec<bool>,
     /// The barrier's reach d_hat beyond a pair's offset (m).
     pub reach: f64,
+    /// Neighbours at rest (`neighbours`), found once: for each point the triangles, for each
+    /// edge the later edges, ascending.
+    point_near: Vec<Vec<u32>>,
+    edge_near: Vec<Vec<u32>>,
 }
 
 impl Surface {
@@ -66,33 +70,75 @@ impl Surface {
         }
         (s.edges, s.edge_layer) = edges.into_iter().unzip();
         (s.points, s.point_layer) = points.into_iter().unzip();
+        s.find_neighbours();
         s
+    }
+
+    /// On one layer, primitives within twice the barrier's reach of each other at rest (offset
+    /// + d_hat), so that compressing the skin in its plane to half does not bring them into it:
+    /// neighbours on one surface, never a pair. (Two layers near each other at rest, a skin on
+    /// a body, do touch.)
+    fn near(&self, layer: u32) -> f64 {
+        2.0 * (self.barrier(layer, layer).offset + self.reach)
+    }
+
+    fn find_neighbours(&mut self) {
+        use rayon::prelude::*;
+        let r = self.half.iter().map(|&h| 2.0 * (2.0 * h + self.reach)).fold(0.0f64, f64::max);
+        let (by_point, by_edge) = super::broad::overlaps(self, &self.rest, r);
+        let s = &*self;
+        let rest4 = |v: &[u32; 4]| v.map(|i| s.rest[i as usize].to_array());
+        let point_near = by_point
+            .into_par_iter()
+            .enumerate()
+            .map(|(p, found)| {
+                let (l, near) = (s.point_layer[p], s.near(s.point_layer[p]));
+                found
+                    .into_iter()
+                    .filter(|&t| {
+                        let tri = s.triangles[t as usize];
+                        let v = [s.points[p], tri[0], tri[1], tri[2]];
+                        s.tri_layer[t as usize] == l
+                            && !tri.contains(&s.points[p])
+                            && squared_distance(Primitives::PointTriangle, &rest4(&v)) < near * near
+                    })
+                    .collect()
+            })
+            .collect();
+        let edge_near = by_edge
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, found)| {
+                let (l, near, a) = (s.edge_layer[i], s.near(s.edge_layer[i]), s.edges[i]);
+                found
+                    .into_iter()
+                    .filter(|&j| {
+                        let b = s.edges[j as usize];
+                        let v = [a[0], a[1], b[0], b[1]];
+                        s.edge_layer[j as usize] == l
+                            && !(a.contains(&b[0]) || a.contains(&b[1]))
+                            && squared_distance(Primitives::EdgeEdge, &rest4(&v)) < near * near
+                    })
+                    .collect()
+            })
+            .collect();
+        (self.point_near, self.edge_near) = (point_near, edge_near);
     }
 
     pub fn is_empty(&self) -> bool {
         self.triangles.is_empty()
     }
 
-    fn rest4(&self, v: &[u32; 4]) -> [[f64; 3]; 4] {
-        v.map(|i| self.rest[i as usize].to_array())
-    }
-
     /// Whether two primitives of layers a and b, with vertices `v` (the pair's four), may form
-    /// a pair: they share no vertex, their layers are not bound, at least one moves, and, on one
-    /// layer, they are not within twice the barrier's reach at rest (neighbours on one surface,
-    /// not two surfaces meeting).
-    fn admits(&self, kind: Primitives, v: &[u32; 4], a: u32, b: u32) -> bool {
+    /// a pair: they share no vertex, their layers are not bound, at least one moves, and they
+    /// are not `neighbours` at rest (`near`).
+    fn admits(&self, kind: Primitives, v: &[u32; 4], a: u32, b: u32, neighbours: bool) -> bool {
         let shared = match kind {
             Primitives::PointTriangle => v[1..].contains(&v[0]),
             Primitives::EdgeEdge => v[0] == v[2] || v[0] == v[3] || v[1] == v[2] || v[1] == v[3],
         };
         let layers =
             !self.bound.contains(&(a.min(b), a.max(b))) && (self.moving[a as usize] || self.moving[b as usize]);
-        // Neighbours on one layer: within twice the barrier's reach at rest (offset + d_hat),
-        // so that compressing the skin in its plane to half does not bring them into it. (Two
-        // layers near each other at rest, a skin on a body, do touch.)
-        let near = 2.0 * (self.barrier(a, b).offset + self.reach);
-        let neighbours = a == b && squared_distance(kind, &self.rest4(v)) < near * near;
         !shared && layers && !neighbours
     }
 
@@ -113,7 +159,8 @@ impl Surface {
         let v = [self.points[p], tri[0], tri[1], tri[2]];
         let kind = Primitives::PointTriangle;
         let (a, b) = (self.point_layer[p], self.tri_layer[t]);
-        self.admits(kind, &v, a, b).then(|| Pair { v, kind, barrier: self.barrier(a, b), eps: 0.0 })
+        let neighbours = self.point_near[p].binary_search(&(t as u32)).is_ok();
+        self.admits(kind, &v, a, b, neighbours).then(|| Pair { v, kind, barrier: self.barrier(a, b), eps: 0.0 })
     }
 
     /// The edge-edge pair of edges i and j, if admitted.
@@ -123,7 +170,8 @@ impl Surface {
         let kind = Primitives::EdgeEdge;
         let length = |e: [u32; 2]| (self.rest[e[0] as usize] - self.rest[e[1] as usize]).length();
         let (la, lb) = (self.edge_layer[i], self.edge_layer[j]);
-        self.admits(kind, &v, la, lb).then(|| Pair {
+        let neighbours = self.edge_near[i.min(j)].binary_search(&(i.max(j) as u32)).is_ok();
+        self.admits(kind, &v, la, lb, neighbours).then(|| Pair {
             v,
             kind,
             barrier: self.barrier(la, lb),

@@ -103,19 +103,22 @@ pub(super) fn stiffen(packed: &mut PackedPatch, pattern: &Pattern, grad: &[f64],
 }
 
 /// Before a line search along `dx` (free DOFs) from the state: lists the pairs near the step
-/// and returns the largest fraction of it no pair crosses (additive CCD), counting a cut.
+/// (unless the last list still covers it) and returns the largest fraction of it no pair
+/// crosses (additive CCD), counting a cut. (The caller fits the list to the pattern after the
+/// step either way: which listed pairs are active changes with the state.)
 pub(super) fn bound_step(packed: &mut PackedPatch, pattern: &Pattern, dx: &[f64]) -> f64 {
     let Some(state) = packed.contact.as_mut() else { return 1.0 };
     let x = &packed.state.x;
     let mut end = x.clone();
     super::iteration::step(&mut end, x, &pattern.dof, dx, 1.0);
-    let pairs = state.pairs_near(x, Some(&end), &packed.state.fixed);
+    if !state.still_listed(x, &end) {
+        packed.elements.contacts.pairs = state.pairs_near(x, Some(&end), &packed.state.fixed);
+    }
     let d: Vec<DVec3> = end.iter().zip(x).map(|(a, b)| *a - *b).collect();
-    let alpha = ContactState::step_bound(&pairs, x, &d);
+    let alpha = ContactState::step_bound(&packed.elements.contacts.pairs, x, &d);
     if alpha < 1.0 {
         state.report.ccd_cuts += 1;
     }
-    packed.elements.contacts.pairs = pairs;
     alpha
 }
 

@@ -167,14 +167,7 @@ impl Loop {
         if at.filter != Filter::Exact {
             assemble(&packed.elements, pattern, &packed.state.x, Filter::Exact, &mut self.grad, &mut self.values);
         }
-        // (with contact, an escape may not pass the surfaces through each other)
-        let energy_at = |x: &[DVec3]| {
-            if contact::clear_path(packed, &packed.state.x, x) {
-                energy(&packed.elements, x).total()
-            } else {
-                f64::INFINITY
-            }
-        };
+        let energy_at = |x: &[DVec3]| energy(&packed.elements, x).total();
         let settle = self.out.escapes > 0 && self.out.iterations < settings.max_iterations;
         let clock = std::time::Instant::now();
         let (values, scale) = (&self.values, self.energy_scale);
@@ -184,6 +177,12 @@ impl Loop {
                 .map_or(Leave::Stay, Leave::Escape),
         };
         self.out.counters.stability_ms += clock.elapsed().as_secs_f64() * 1e3;
+        // (with contact, an escape may not pass the surfaces through each other: one that would
+        // is not taken)
+        let left = match left {
+            Leave::Escape(x) if !contact::clear_path(packed, &packed.state.x, &x) => Leave::Stay,
+            other => other,
+        };
         match left {
             Leave::Stay => false,
             Leave::Escape(x) => {

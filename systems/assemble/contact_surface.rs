@@ -58,6 +58,7 @@ pub(super) fn rebuild(
         .collect();
     let rest = index.vertices.iter().map(|&v| items.rest.get(v).expect("vertex").0).collect();
     let surface = Surface::new(&surfaces, rest, c.reach, &bound);
+    // (the list's margin: a step of up to half of it needs no new broad phase)
     let mut state = ContactState::new(surface, c.reach);
     if let Some(old) = packed.contact.take() {
         (state.stiffness, state.stiffness_min, state.stiffness_max) =
