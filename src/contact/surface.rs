@@ -74,10 +74,10 @@ impl Surface {
         s
     }
 
-    /// On one layer, primitives within twice the barrier's reach of each other at rest (offset
-    /// + d_hat), so that compressing the skin in its plane to half does not bring them into it:
-    /// neighbours on one surface, never a pair. (Two layers near each other at rest, a skin on
-    /// a body, do touch.)
+    /// On one layer, primitives within twice the barrier's reach (offset plus d_hat) of each
+    /// other at rest, so that compressing the skin in its plane to half does not bring them into
+    /// it: neighbours on one surface, never a pair. (Two layers near each other at rest, a skin
+    /// on a body, do touch.)
     fn near(&self, layer: u32) -> f64 {
         2.0 * (self.barrier(layer, layer).offset + self.reach)
     }
