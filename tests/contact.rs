@@ -12,15 +12,6 @@ use skinsim::mesh::crossing::crossing_pairs;
 use skinsim::scene::load_str;
 use skinsim_systems::Simulation;
 
-fn variant(rel: &str, edits: &[(&str, &str)]) -> skinsim::scene::BuiltScene {
-    let mut text = std::fs::read_to_string(scene_path(rel)).unwrap();
-    for (from, to) in edits {
-        assert!(text.contains(from), "{rel} has no {from:?}");
-        text = text.replace(from, to);
-    }
-    load_str(&text, &scene_path(rel)).unwrap_or_else(|e| panic!("{e}"))
-}
-
 /// Squared distance from p to the segment a-b (clamped projection).
 fn point_segment(p: DVec3, a: DVec3, b: DVec3) -> f64 {
     let e = b - a;

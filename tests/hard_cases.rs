@@ -4,17 +4,7 @@
 mod common;
 
 use common::*;
-use skinsim::scene::load_str;
 use skinsim_systems::Simulation;
-
-fn variant(rel: &str, edits: &[(&str, &str)]) -> skinsim::scene::BuiltScene {
-    let mut text = std::fs::read_to_string(scene_path(rel)).unwrap();
-    for (from, to) in edits {
-        assert!(text.contains(from), "{rel} has no {from:?}");
-        text = text.replace(from, to);
-    }
-    load_str(&text, &scene_path(rel)).unwrap_or_else(|e| panic!("{e}"))
-}
 
 fn run_all_converged(scene: &skinsim::scene::BuiltScene) -> Simulation {
     let mut sim = Simulation::new(scene);

@@ -93,6 +93,19 @@ mod tests {
     use crate::physics::{gaussian_bending, QuadraticBending};
     use crate::solve::pattern::NONE;
 
+    /// The symmetric matrix whose lower triangle the pattern stores.
+    fn dense(pattern: &Pattern, values: &[f64]) -> nalgebra::DMatrix<f64> {
+        let mut dense = nalgebra::DMatrix::<f64>::zeros(pattern.n, pattern.n);
+        for c in 0..pattern.n {
+            let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
+            for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
+                dense[(r as usize, c)] = v;
+                dense[(c, r as usize)] = v;
+            }
+        }
+        dense
+    }
+
     /// The assembled gradient and Hessian at x against central differences of `part` (the
     /// energy) and of the assembled gradient, over every free DOF.
     fn assert_derivatives(
@@ -206,14 +219,7 @@ mod tests {
             assert!((a.parts.volume - volume(&x)).abs() < 1e-14);
             assert_derivatives(&el, &pattern, &x, volume, &grad, &values);
             // Inertia: the LDL^T's count against the dense spectrum.
-            let mut dense = nalgebra::DMatrix::<f64>::zeros(pattern.n, pattern.n);
-            for c in 0..pattern.n {
-                let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
-                for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
-                    dense[(r as usize, c)] = v;
-                    dense[(c, r as usize)] = v;
-                }
-            }
+            let dense = dense(&pattern, &values);
             let negative = nalgebra::SymmetricEigen::new(dense).eigenvalues.iter().filter(|&&l| l < 0.0).count();
             let mut chol = super::super::linear::CholeskySolver::analyze(&pattern);
             let verdict = super::super::stability::test(&pattern, &mut chol, &values).expect("an LDL^T");
@@ -257,15 +263,7 @@ mod tests {
         let a = assemble(&el, &pattern, &x, Filter::Exact, &mut grad, &mut values);
         assert!(a.parts.contact > 0.0 && a.parts.total() == a.parts.contact);
         assert_derivatives(&el, &pattern, &x, |y| energy(&el, y).contact, &grad, &values);
-        let mut dense = nalgebra::DMatrix::<f64>::zeros(pattern.n, pattern.n);
-        for c in 0..pattern.n {
-            let span = pattern.col_ptr[c] as usize..pattern.col_ptr[c + 1] as usize;
-            for (&r, &v) in pattern.row_idx[span.clone()].iter().zip(&values[span]) {
-                dense[(r as usize, c)] = v;
-                dense[(c, r as usize)] = v;
-            }
-        }
-        let eigen = nalgebra::SymmetricEigen::new(dense).eigenvalues;
+        let eigen = nalgebra::SymmetricEigen::new(dense(&pattern, &values)).eigenvalues;
         let scale = eigen.iter().fold(0.0f64, |m, l| m.max(l.abs()));
         let negative = eigen.iter().filter(|&&l| l < -1e-12 * scale).count();
         assert!(negative > 0, "the exact barrier Hessian is indefinite here: {eigen}");

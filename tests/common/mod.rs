@@ -19,6 +19,16 @@ pub fn load(rel: &str) -> BuiltScene {
     scene::load(&scene_path(rel)).unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// A scene of `scenes/` with text edits (each must be found), built.
+pub fn variant(rel: &str, edits: &[(&str, &str)]) -> BuiltScene {
+    let mut text = std::fs::read_to_string(scene_path(rel)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{rel} has no {from:?}");
+        text = text.replace(from, to);
+    }
+    scene::load_str(&text, &scene_path(rel)).unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// Runs every frame of a scene and returns the per-frame stats.
 pub fn run(scene: &BuiltScene) -> (Simulation, Vec<FrameStats>) {
     let mut sim = Simulation::new(scene);
