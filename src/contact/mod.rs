@@ -109,6 +109,11 @@ impl ContactState {
     pub fn pairs_near(&mut self, x: &[DVec3], x1: Option<&[DVec3]>, fixed: &[[bool; 3]]) -> Vec<Pair> {
         self.report.broad_phases += 1;
         self.listed_at = x.to_vec();
+        self.free_pairs(x, x1, fixed)
+    }
+
+    /// The same pairs, neither counted nor kept as the list (a one-off check).
+    pub fn free_pairs(&self, x: &[DVec3], x1: Option<&[DVec3]>, fixed: &[[bool; 3]]) -> Vec<Pair> {
         let mut pairs = broad::candidates(&self.surface, x, x1, self.list_reach());
         pairs.retain(|p| p.v.iter().any(|&v| fixed[v as usize] != [true; 3]));
         pairs

@@ -133,8 +133,7 @@ pub(super) fn relist(packed: &mut PackedPatch) -> bool {
 /// Whether the straight path from `from` to `to` crosses no pair (the stability test's escape).
 pub(super) fn clear_path(packed: &PackedPatch, from: &[DVec3], to: &[DVec3]) -> bool {
     let Some(state) = packed.contact.as_ref() else { return true };
-    let mut pairs = crate::contact::broad::candidates(&state.surface, from, Some(to), state.list_reach());
-    pairs.retain(|p| p.v.iter().any(|&v| packed.state.fixed[v as usize] != [true; 3]));
+    let pairs = state.free_pairs(from, Some(to), &packed.state.fixed);
     let d: Vec<DVec3> = to.iter().zip(from).map(|(a, b)| *a - *b).collect();
     ContactState::step_bound(&pairs, from, &d) >= 1.0
 }
@@ -183,7 +182,8 @@ pub(super) fn continuation(
         if alpha >= 1.0 {
             packed.state.x = target_with_free(&goal, &packed.state.x, &packed.state.fixed);
         }
-        packed.elements.contacts.pairs = state.pairs_near(&packed.state.x, None, &packed.state.fixed);
+        // (the list of the sweep covers where it stopped: no second broad phase)
+        packed.elements.contacts.pairs = pairs;
         packed.elements.contacts.stiffness = state.stiffness;
         if fit(packed, pattern) {
             solver.reanalyse(packed, pattern, settings);
