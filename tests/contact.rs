@@ -172,6 +172,41 @@ fn a_sheet_pressed_onto_a_sphere_drapes_over_it() {
     assert!(crossed > 0, "without contact the sphere passes through the sheet");
 }
 
+/// Friction (`scenes/examples/grip_sphere.ron`): the sheet pressed onto the sphere grips it
+/// (mu = 1) as it turns 2 degrees about its centre, so the sheet over the sphere's top is
+/// carried along with it (0.21 mm) where static friction holds; frictionless, the sphere turns
+/// under the sheet (its shape unchanged) and leaves it in place. Every frame converges and
+/// neither run crosses the sphere.
+#[test]
+fn skin_grips_where_static_friction_holds() {
+    let rel = "examples/grip_sphere.ron";
+    let top_moves = 6e-3 * 2f64.to_radians().sin();
+    let measure = |sim: &mut Simulation| {
+        let (_, xs, fs) = sim.layer_surface("sheet", "sheet");
+        let (_, xb, fb) = sim.layer_surface("sheet", "sphere");
+        let (x, faces) = merged(&[(xs.clone(), fs.clone()), (xb, fb)]);
+        assert!(crossing_pairs(&faces, &x).is_empty(), "the sheet crosses the sphere");
+        xs
+    };
+    // How far the sheet's vertex over the sphere's top moves while the sphere turns (frames
+    // 8-16), over how far the top moves.
+    let carried = |scene: &skinsim::scene::BuiltScene| {
+        let x = every_frame(scene, measure);
+        let (pressed, turned) = (&x[7], &x[15]);
+        let top = (0..pressed.len())
+            .min_by(|&a, &b| {
+                let d = |p: DVec3| (p.x - 10e-3).powi(2) + (p.y - 10e-3).powi(2);
+                d(pressed[a]).total_cmp(&d(pressed[b]))
+            })
+            .unwrap();
+        (turned[top].x - pressed[top].x) / top_moves
+    };
+    let gripped = carried(&load(rel));
+    assert!(gripped > 0.9, "with friction the sheet's top moves {gripped} of the sphere's top");
+    let frictionless = carried(&variant(rel, &[("friction: 1.0", "friction: 0.0")]));
+    assert!(frictionless.abs() < 0.1, "frictionless, the sheet's top moves {frictionless} of the sphere's top");
+}
+
 /// Determinism: the folded strip (contact active from frame 5) gives the same bits with 1 and
 /// 2 threads.
 #[test]
@@ -231,8 +266,10 @@ fn bad_contact_input_is_refused_naming_the_field() {
     mentions(&e, &["patches[0] (\"p\").contact.thickness", "positive"]);
     let e = refused(&CONTACT.replace("d_hat: 0.05", "d_hat: -1.0"));
     mentions(&e, &["patches[0] (\"p\").contact.d_hat", "positive"]);
-    let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, friction: 0.5)"));
-    mentions(&e, &["patches[0] (\"p\").contact.friction", "not supported yet"]);
+    let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, friction: -0.5)"));
+    mentions(&e, &["patches[0] (\"p\").contact.friction", "coefficient"]);
+    let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, friction: 0.5, sticking: 0.0)"));
+    mentions(&e, &["patches[0] (\"p\").contact.sticking", "positive"]);
     let e = refused(
         &CONTACT
             .replace("frames: 1,", "frames: 1, frame_time: 0.01,")

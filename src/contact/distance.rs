@@ -162,29 +162,52 @@ pub fn squared<D: DualNum<Primitive = f64> + Copy>(t: DistanceType, x: &[[D; 3];
     }
 }
 
-/// The pair's closest points (one on each primitive), for drawing.
-pub fn closest_points(kind: Primitives, x: &[[f64; 3]; 4]) -> ([f64; 3], [f64; 3]) {
-    let lerp = |a: [f64; 3], b: [f64; 3], t: f64| -> [f64; 3] { std::array::from_fn(|k| a[k] + t * (b[k] - a[k])) };
+/// The weights w of the pair's closest points: sum_i w_i x_i is the closest point of the first
+/// primitive (the point; edge a) minus that of the second (the triangle; edge b). Friction's
+/// slip and the viewer's segments read them.
+pub fn closest_weights(kind: Primitives, x: &[[f64; 3]; 4]) -> [f64; 4] {
     let along = |p: [f64; 3], a: [f64; 3], b: [f64; 3]| {
         let e = sub3(b, a);
         (dot3(sub3(p, a), e) / length2(e).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0)
     };
+    // (+1 on the first primitive's points, -1 on the second's)
+    let side = |i: usize| if i == 0 || (kind == Primitives::EdgeEdge && i == 1) { 1.0 } else { -1.0 };
+    let mut w = [0.0; 4];
     match DistanceType::of(kind, x) {
-        DistanceType::PointPoint(i, j) => (x[i], x[j]),
-        DistanceType::PointEdge(p, a, b) => (x[p], lerp(x[a], x[b], along(x[p], x[a], x[b]))),
+        DistanceType::PointPoint(i, j) => (w[i], w[j]) = (side(i), side(j)),
+        DistanceType::PointEdge(p, a, b) => {
+            let t = along(x[p], x[a], x[b]);
+            (w[p], w[a], w[b]) = (side(p), side(a) * (1.0 - t), side(b) * t);
+        }
         DistanceType::PointPlane => {
-            let n = cross3(sub3(x[2], x[1]), sub3(x[3], x[1]));
-            let h = dot3(sub3(x[0], x[1]), n) / length2(n);
-            (x[0], std::array::from_fn(|k| x[0][k] - h * n[k]))
+            let (e1, e2, r) = (sub3(x[2], x[1]), sub3(x[3], x[1]), sub3(x[0], x[1]));
+            let (a, b, c, d, e) = (dot3(e1, e1), dot3(e1, e2), dot3(e2, e2), dot3(r, e1), dot3(r, e2));
+            let det = a * c - b * b;
+            let (u, v) = ((c * d - b * e) / det, (a * e - b * d) / det);
+            w = [1.0, -(1.0 - u - v), -u, -v];
         }
         DistanceType::LineLine => {
             let (ea, eb, r) = (sub3(x[1], x[0]), sub3(x[3], x[2]), sub3(x[0], x[2]));
             let (a, b, c, d, e) = (dot3(ea, ea), dot3(ea, eb), dot3(eb, eb), dot3(ea, r), dot3(eb, r));
             let det = a * c - b * b;
             let (s, t) = ((b * e - c * d) / det, (a * e - b * d) / det);
-            (lerp(x[0], x[1], s), lerp(x[2], x[3], t))
+            w = [1.0 - s, s, -(1.0 - t), -t];
         }
     }
+    w
+}
+
+/// The pair's closest points (one on each primitive), for drawing.
+pub fn closest_points(kind: Primitives, x: &[[f64; 3]; 4]) -> ([f64; 3], [f64; 3]) {
+    let w = closest_weights(kind, x);
+    let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+    for (i, &wi) in w.iter().enumerate() {
+        let (to, s) = if wi > 0.0 { (&mut a, wi) } else { (&mut b, -wi) };
+        for k in 0..3 {
+            to[k] += s * x[i][k];
+        }
+    }
+    (a, b)
 }
 
 /// The pair's squared distance at f64 positions.

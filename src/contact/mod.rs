@@ -12,6 +12,7 @@ pub mod barrier;
 pub mod broad;
 pub mod ccd;
 pub mod distance;
+pub mod friction;
 pub mod pair;
 pub mod surface;
 
@@ -19,6 +20,7 @@ use glam::DVec3;
 
 pub use barrier::Barrier;
 pub use distance::{DistanceType, Primitives};
+pub use friction::{FrictionPair, FrictionPairs};
 pub use pair::Pair;
 pub use surface::{Surface, SurfaceLayer};
 
@@ -56,6 +58,9 @@ pub struct ContactState {
     /// The smallest z / z_hat (z = d^2 - xi^2) of a pair at the last iterate (IPC's stiffness
     /// update: below 1 a pair is active).
     pub last_min_z: f64,
+    /// The friction coefficient mu (0: frictionless) and the sticking slip eps_u (m).
+    pub friction: f64,
+    pub sticking: f64,
     /// This frame's record.
     pub report: ContactReport,
     /// The state at the end of the last solve: where prescribed vertices move from.
@@ -91,6 +96,10 @@ pub struct ContactReport {
     pub remaps: u32,
     /// The contact energy at the end of the frame (J).
     pub energy: f64,
+    /// Friction pairs (touching at the frame's start), and the largest slip of one over the
+    /// frame (m): below the sticking slip a pair holds.
+    pub friction_pairs: usize,
+    pub slip: f64,
 }
 
 impl ContactState {
@@ -128,6 +137,18 @@ impl ContactState {
                 .zip(x1)
                 .zip(&self.listed_at)
                 .all(|((a, b), c)| a.distance_squared(*c) <= r2 && b.distance_squared(*c) <= r2)
+    }
+
+    /// The friction pairs of a frame starting at `x`: the pairs touching there, lagged
+    /// (`FrictionPair::lagged`); none without friction or before pairs first touched.
+    pub fn lag_friction(&self, x: &[DVec3], fixed: &[[bool; 3]]) -> FrictionPairs {
+        let eps = self.sticking;
+        if self.friction == 0.0 || self.stiffness == 0.0 {
+            return FrictionPairs { pairs: Vec::new(), eps };
+        }
+        let pairs = self.free_pairs(x, None, fixed);
+        let pairs = pairs.iter().filter_map(|p| FrictionPair::lagged(p, x, self.stiffness, self.friction)).collect();
+        FrictionPairs { pairs, eps }
     }
 
     /// Starts a frame's record (the stiffness carries over).

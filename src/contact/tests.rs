@@ -395,3 +395,72 @@ fn the_surface_pairs_what_may_touch() {
         assert!(d >= 0.8, "{p:?} at {d}");
     }
 }
+
+/// Lagged friction: the closest points' weights give the brute-force distance, the normal
+/// force is the barrier's force along the distance (a central difference of its energy), and
+/// the friction energy's gradient and Hessian match central differences, sticking (slip below
+/// eps_u) and sliding, with a PSD Hessian.
+#[test]
+fn friction_pairs_match_central_differences() {
+    use glam::DVec3;
+    let barrier = Barrier { offset: 0.1, reach: 0.3 };
+    let (stiffness, mu) = (2.0, 0.7);
+    for (kind, x, expected) in every_type() {
+        let eps = if kind == Primitives::EdgeEdge { barrier::mollifier_threshold(1.0, 1.0) * 100.0 } else { 0.0 };
+        let pair = Pair { v: [0, 1, 2, 3], kind, barrier, eps };
+        let w = distance::closest_weights(kind, &x);
+        let offset: [f64; 3] = std::array::from_fn(|k| (0..4).map(|i| w[i] * x[i][k]).sum());
+        let d2: f64 = offset.iter().map(|c| c * c).sum();
+        assert!((d2 - brute_force(kind, &x)).abs() <= 1e-9, "{expected:?}: weights {w:?}");
+        // lambda: the barrier energy's slope when the first primitive moves along the offset
+        // (a rigid shift of one primitive changes the distance one for one).
+        let n: [f64; 3] = offset.map(|c| c / d2.sqrt());
+        let along = |s: f64| {
+            let mut y = x;
+            for (i, p) in y.iter_mut().enumerate() {
+                if w[i] > 0.0 || (w[i] == 0.0 && (i == 0 || (kind == Primitives::EdgeEdge && i == 1))) {
+                    (0..3).for_each(|k| p[k] += s * n[k]);
+                }
+            }
+            stiffness * pair.energy(&y)
+        };
+        let h = 1e-7;
+        let slope = (along(h) - along(-h)) / (2.0 * h);
+        let xs: Vec<DVec3> = x.iter().map(|p| DVec3::from_array(*p)).collect();
+        let f = FrictionPair::lagged(&pair, &xs, stiffness, mu).expect("touching");
+        assert!((f.force - mu * slope.abs()).abs() <= 1e-5 * f.force, "{expected:?}: {} vs {}", f.force, mu * slope);
+        assert!(f.basis.iter().all(|b| b.dot(DVec3::from_array(n)).abs() < 1e-12));
+        // Slips below and beyond the sticking slip eps_u = 0.01, along a tangent.
+        for (scale, label) in [(0.004, "sticking"), (0.05, "sliding")] {
+            let mut y = xs.clone();
+            y[0] += scale * (0.8 * f.basis[0] + 0.6 * f.basis[1]) + DVec3::new(0.001, -0.002, 0.0015);
+            y[3] -= DVec3::new(0.002, 0.001, -0.001) * scale;
+            let eps_u = 0.01;
+            let (e, g, hm) = f.derivatives(&y, eps_u);
+            assert!((e - f.energy(&y, eps_u)).abs() <= 1e-14 * e);
+            let step = 1e-7;
+            for i in 0..12 {
+                let shifted = |s: f64| {
+                    let mut z = y.clone();
+                    z[i / 3][i % 3] += s;
+                    z
+                };
+                let fd = (f.energy(&shifted(step), eps_u) - f.energy(&shifted(-step), eps_u)) / (2.0 * step);
+                assert!((fd - g[i]).abs() <= 1e-6 * (1.0 + g[i].abs()), "{label} {expected:?} g[{i}]: {fd} vs {}", g[i]);
+                let (gp, gm) = (f.derivatives(&shifted(step), eps_u).1, f.derivatives(&shifted(-step), eps_u).1);
+                for j in 0..12 {
+                    let fd = (gp[j] - gm[j]) / (2.0 * step);
+                    let scale = 1.0 + hm.abs().max();
+                    assert!((fd - hm[(j, i)]).abs() <= 1e-5 * scale, "{label} H[{j},{i}]: {fd} vs {}", hm[(j, i)]);
+                }
+            }
+            let min = hm.symmetric_eigenvalues().min();
+            assert!(min >= -1e-9 * hm.abs().max(), "{label}: {min}");
+            // Sliding, a point with weight 1 feels mu lambda, along the slip.
+            if label == "sliding" && w[0] == 1.0 {
+                let push = DVec3::new(g[0], g[1], g[2]).length();
+                assert!((push - f.force).abs() <= 1e-9 * f.force, "{expected:?}: {push} vs {}", f.force);
+            }
+        }
+    }
+}

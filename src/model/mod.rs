@@ -40,7 +40,10 @@ pub struct Contact {
     pub thickness: f64,
     /// Its reach d_hat beyond the offset (m).
     pub reach: f64,
+    /// Coulomb's coefficient between touching surfaces (0: frictionless).
     pub friction: f64,
+    /// The slip per frame below which friction holds a pair (m): eps_u of `contact::friction`.
+    pub sticking: f64,
 }
 
 /// What a layer is made of.

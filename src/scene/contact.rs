@@ -30,10 +30,14 @@ impl Builder {
             Some(d) => positive("d_hat", d)?,
             None => 0.5 * thickness,
         };
-        if c.friction != 0.0 {
-            let message = "friction between touching skin is not supported yet: set 0 (frictionless)";
+        if !(c.friction.is_finite() && c.friction >= 0.0) {
+            let message = format!("must be a friction coefficient (0 or more), not {}", c.friction);
             return Err(self.err(format!("{at}.friction"), message));
         }
+        let sticking = match c.sticking {
+            Some(s) => positive("sticking", s)?,
+            None => 0.01 * thickness,
+        };
         // What the contact solve does not combine with yet.
         let refuse = |why: &str| Err(self.err(at.to_string(), format!("contact {why} is not supported yet")));
         if p.solver.globalization == crate::solve::Globalization::TrustRegion {
@@ -68,6 +72,6 @@ impl Builder {
             let message = format!("the start state already crosses: {} passes through {}", name(a), name(b));
             return Err(self.err(at.to_string(), message));
         }
-        Ok(Contact { thickness, reach, friction: c.friction })
+        Ok(Contact { thickness, reach, friction: c.friction, sticking })
     }
 }

@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 
-use super::element::Part;
+use super::element::Term;
 use super::error::SolveError;
 use super::iteration::mean_abs_diagonal;
 use super::iteration::FrameOutcome;
@@ -20,9 +20,10 @@ use super::pattern::{Pattern, NONE};
 use super::settings::SolverSettings;
 use crate::contact::{gather, ContactReport, ContactState};
 
-/// The contact kind's index among the registered terms.
-fn kind(packed: &PackedPatch) -> usize {
-    packed.elements.terms().iter().position(|t| t.part() == Part::Contact).expect("the contact kind is registered")
+/// The index of the registered kind `term` (a field of `packed.elements`) among the terms.
+fn kind(packed: &PackedPatch, term: &dyn Term) -> usize {
+    let at = term as *const dyn Term;
+    packed.elements.terms().iter().position(|t| std::ptr::addr_eq(*t as *const dyn Term, at)).expect("a registered kind")
 }
 
 /// Puts the listed pairs inside the pattern: new scatter maps when their couplings are in it,
@@ -31,16 +32,21 @@ fn kind(packed: &PackedPatch) -> usize {
 pub(super) fn fit(packed: &mut PackedPatch, pattern: &mut Pattern) -> bool {
     // Only the pairs active at the state have derivatives: the others scatter nowhere (NONE),
     // so a pair listed but not yet near needs no new analysis.
+    // (the frame's friction pairs all have derivatives)
     let (x, pairs) = (&packed.state.x, &packed.elements.contacts.pairs);
+    let friction = &packed.elements.friction.pairs;
     let active: Vec<bool> = pairs.iter().map(|p| p.barrier.active(p.squared_distance(&gather(x, &p.v)))).collect();
-    let covered = pairs.iter().zip(&active).all(|(p, &a)| !a || pattern.covers_stencil(&p.v));
+    let covered = pairs.iter().zip(&active).all(|(p, &a)| !a || pattern.covers_stencil(&p.v))
+        && friction.iter().all(|p| pattern.covers_stencil(&p.v));
     if covered {
         let map = pairs
             .iter()
             .zip(&active)
             .flat_map(|(p, &a)| if a { pattern.element_map(&p.v) } else { vec![NONE; super::scatter::pairs(4)] })
             .collect();
-        pattern.maps[kind(packed)] = map;
+        pattern.maps[kind(packed, &packed.elements.contacts)] = map;
+        let map = friction.iter().flat_map(|p| pattern.element_map(&p.v)).collect();
+        pattern.maps[kind(packed, &packed.elements.friction)] = map;
     }
     let state = packed.contact.as_mut().expect("a patch with contact");
     if covered {
@@ -163,6 +169,8 @@ pub(super) fn continuation(
     // Everything starts where the last solve left it; the first step moves it all towards the
     // start (the guess may jump as far as the body does), later ones the prescribed only.
     packed.state.x.copy_from_slice(&from);
+    // Friction lagged at the frame's start (IPC's single lagged update per step).
+    packed.elements.friction = state.lag_friction(&from, &packed.state.fixed);
     let mut total = FrameOutcome::default();
     let mut first = true;
     loop {
@@ -221,6 +229,9 @@ pub(super) fn report(packed: &PackedPatch) -> Option<ContactReport> {
     let state = packed.contact.as_ref()?;
     let mut r = state.report;
     r.stiffness = state.stiffness;
+    let friction = &packed.elements.friction;
+    r.friction_pairs = friction.pairs.len();
+    r.slip = friction.pairs.iter().map(|p| p.slip(&packed.state.x).norm()).fold(0.0, f64::max);
     r.energy = super::element::Term::energy(&packed.elements.contacts, &packed.state.x);
     Some(r)
 }

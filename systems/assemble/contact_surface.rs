@@ -60,6 +60,7 @@ pub(super) fn rebuild(
     let surface = Surface::new(&surfaces, rest, c.reach, &bound);
     // (the list's margin: a step of up to half of it needs no new broad phase)
     let mut state = ContactState::new(surface, c.reach);
+    (state.friction, state.sticking) = (c.friction, c.sticking);
     if let Some(old) = packed.contact.take() {
         (state.stiffness, state.stiffness_min, state.stiffness_max) =
             (old.stiffness, old.stiffness_min, old.stiffness_max);

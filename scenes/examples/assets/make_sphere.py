@@ -1,5 +1,7 @@
-"""Writes the icospheres of scenes/examples/press_sphere.ron: radius 6 mm, 3 subdivisions
-(642 vertices), centred at (10, 10, -6.5) (top 0.5 mm below the sheet) and 3 mm higher."""
+"""Writes the icospheres of scenes/examples/press_sphere.ron and grip_sphere.ron: radius 6 mm,
+3 subdivisions (642 vertices), centred at (10, 10, -6.5) (top 0.5 mm below the sheet), 3 mm
+higher, and 3 mm higher turned by 2 degrees about the y axis through its centre (its top moves
+0.21 mm towards +x)."""
 import math, os
 
 def icosphere(levels):
@@ -28,10 +30,15 @@ def icosphere(levels):
 
 v, f = icosphere(3)
 here = os.path.dirname(os.path.abspath(__file__))
-for name, cz in [("sphere.obj", -6.5), ("sphere_up.obj", -3.5)]:
+def turned(p, degrees):
+    a = math.radians(degrees)
+    return (math.cos(a) * p[0] + math.sin(a) * p[2], p[1], -math.sin(a) * p[0] + math.cos(a) * p[2])
+
+for name, cz, turn in [("sphere.obj", -6.5, 0), ("sphere_up.obj", -3.5, 0), ("sphere_turned.obj", -3.5, 2)]:
     with open(os.path.join(here, name), "w") as out:
         out.write("# icosphere, radius 6 mm, made by make_sphere.py\n")
         for p in v:
+            p = turned(p, turn) if turn else p
             out.write("v %.9f %.9f %.9f\n" % (10 + 6 * p[0], 10 + 6 * p[1], cz + 6 * p[2]))
         for a, b, c in f:
             out.write("f %d %d %d\n" % (a + 1, b + 1, c + 1))

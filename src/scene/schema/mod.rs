@@ -156,9 +156,14 @@ pub struct ContactSpec {
     /// How far beyond the thickness the barrier acts; half the thickness when absent.
     #[serde(default)]
     pub d_hat: Option<f64>,
-    /// Coulomb friction between touching skin (not yet supported: 0).
+    /// Coulomb's friction coefficient between touching surfaces (0: frictionless), lagged once
+    /// per frame (IPC).
     #[serde(default)]
     pub friction: f64,
+    /// The slip per frame below which friction holds (length units): a hundredth of the
+    /// thickness when absent.
+    #[serde(default)]
+    pub sticking: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -5,6 +5,7 @@
 mod anchor;
 mod cell;
 mod contact;
+mod friction;
 mod gaussian;
 mod hinge;
 mod membrane;
@@ -71,6 +72,8 @@ elements! {
     pins: Vec<PinElem>,
     /// Barrier contact pairs near the state (a patch with `contact`; refreshed as it moves).
     contacts: crate::contact::ContactPairs,
+    /// Lagged friction: the contact pairs touching at the frame's start (contact with friction).
+    friction: crate::contact::FrictionPairs,
 }
 
 impl Elements {
