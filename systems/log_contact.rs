@@ -44,5 +44,9 @@ pub fn log_contact(
         let _ = rec.log(format!("{stats}/stiffness"), &rerun::Scalars::new([c.stiffness]));
         let _ = rec.log(format!("{stats}/ccd_cuts"), &rerun::Scalars::new([c.ccd_cuts as f64]));
         let _ = rec.log(format!("{stats}/reanalyses"), &rerun::Scalars::new([c.reanalyses as f64]));
+        if c.friction_pairs > 0 {
+            let _ = rec.log(format!("{stats}/friction_pairs"), &rerun::Scalars::new([c.friction_pairs as f64]));
+            let _ = rec.log(format!("{stats}/slip"), &rerun::Scalars::new([c.slip]));
+        }
     }
 }
