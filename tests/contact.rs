@@ -207,6 +207,38 @@ fn skin_grips_where_static_friction_holds() {
     assert!(frictionless.abs() < 0.1, "frictionless, the sheet's top moves {frictionless} of the sphere's top");
 }
 
+/// Contact between two patches (`scenes/examples/two_strips.ron`: a strip whose held ends are
+/// carried down across another, each its own patch, each naming the other in `contact.with`):
+/// solved in turn, no frame ends with the strips crossing or closer than the 0.3 mm thickness;
+/// without `with` the upper strip passes through the lower one.
+#[test]
+fn two_patches_never_pass_through_each_other() {
+    let rel = "examples/two_strips.ron";
+    // Crossing faces, the closest approach, and the upper strip's height above the lower one
+    // where they cross (mean heights of their vertices within x in [0, 4] and y in [8, 12] mm).
+    let measure = |sim: &mut Simulation| {
+        let (_, xl, fl) = sim.layer_surface("lower", "strip");
+        let (_, xu, fu) = sim.layer_surface("upper", "strip");
+        let (x, faces) = merged(&[(xl.clone(), fl.clone()), (xu.clone(), fu.clone())]);
+        let height = |x: &[DVec3]| {
+            let z: Vec<f64> = x
+                .iter()
+                .filter(|p| (-1e-6..=4e-3 + 1e-6).contains(&p.x) && (8e-3 - 1e-6..=12e-3 + 1e-6).contains(&p.y))
+                .map(|p| p.z)
+                .collect();
+            z.iter().sum::<f64>() / z.len() as f64
+        };
+        (crossing_pairs(&faces, &x).len(), closest_between((&xl, &fl), (&xu, &fu)), height(&xu) - height(&xl))
+    };
+    for (frame, &(crossing, closest, above)) in every_frame(&load(rel), measure).iter().enumerate() {
+        assert_eq!(crossing, 0, "frame {}: the strips cross", frame + 1);
+        assert!(closest > 0.3e-3 && above > 0.3e-3, "frame {}: {closest} m apart, {above} m above", frame + 1);
+    }
+    let without = variant(rel, &[(", with: [\"upper\"]", ""), (", with: [\"lower\"]", "")]);
+    let last = *every_frame(&without, measure).last().unwrap();
+    assert!(last.2 < 0.0, "without contact between the patches the upper strip passes below: {} m", last.2);
+}
+
 /// Determinism: the folded strip (contact active from frame 5) gives the same bits with 1 and
 /// 2 threads.
 #[test]
@@ -280,6 +312,26 @@ fn bad_contact_input_is_refused_naming_the_field() {
     mentions(&e, &["patches[0] (\"p\").contact", "TrustRegion"]);
     let e = refused(&CONTACT.replace("contact: Some((thickness: 0.1, d_hat: 0.05)),", "contact: Some((d_hat: 0.05)),"));
     mentions(&e, &["thickness"]);
+    // `with`: a body or another patch that exists and has contact of its own.
+    let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, with: [\"nobody\"])"));
+    mentions(&e, &["patches[0] (\"p\").contact.with[0]", "no body or patch is named \"nobody\""]);
+    let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, with: [\"p\"])"));
+    mentions(&e, &["patches[0] (\"p\").contact.with[0]", "itself"]);
+    // (a second patch, "q", without contact)
+    let q = r#"Patch(
+            name: "q",
+            layers: [
+                Layer(name: "film", kind: Shell, mesh: Grid(size: (4.0, 2.0), cells: (4, 2), z: 1.0),
+                      material: (young: 1.0, poisson: 0.3, thickness: 0.1), bending: (model: Tan)),
+            ],
+            drivers: [Pin(layer: "film", select: Sides([XMin]))],
+        ),
+    ],
+)"#;
+    let two = CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, with: [\"q\"])").replace("    ],\n)", q);
+    assert!(two.contains("name: \"q\""));
+    let e = refused(&two);
+    mentions(&e, &["patches[0] (\"p\").contact.with[0]", "no contact of its own"]);
 }
 
 /// A start state whose shells already cross is refused, naming both faces and their layers.

@@ -446,7 +446,11 @@ fn friction_pairs_match_central_differences() {
                     z
                 };
                 let fd = (f.energy(&shifted(step), eps_u) - f.energy(&shifted(-step), eps_u)) / (2.0 * step);
-                assert!((fd - g[i]).abs() <= 1e-6 * (1.0 + g[i].abs()), "{label} {expected:?} g[{i}]: {fd} vs {}", g[i]);
+                assert!(
+                    (fd - g[i]).abs() <= 1e-6 * (1.0 + g[i].abs()),
+                    "{label} {expected:?} g[{i}]: {fd} vs {}",
+                    g[i]
+                );
                 let (gp, gm) = (f.derivatives(&shifted(step), eps_u).1, f.derivatives(&shifted(-step), eps_u).1);
                 for j in 0..12 {
                     let fd = (gp[j] - gm[j]) / (2.0 * step);

@@ -46,6 +46,12 @@ pub struct Contact {
     pub sticking: f64,
 }
 
+/// On a patch with contact: the layers of scene bodies and other patches its skin touches
+/// (`contact.with`), packed after its own vertices and held (`systems::solve` solves such
+/// patches in turn, each against the others' latest positions).
+#[derive(Component, Clone, Debug, Default, PartialEq)]
+pub struct ContactObstacles(pub Vec<Entity>);
+
 /// What a layer is made of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum LayerKind {
@@ -125,6 +131,9 @@ pub struct PackedIndex {
     /// The first `own` packed vertices are the patch's; the rest are a shared body's (read, not
     /// written back).
     pub own: usize,
+    /// From `held` on, the packed vertices are what contact touches besides the patch and its
+    /// body (`ContactObstacles`): held, whatever their own layers' pins.
+    pub held: usize,
     /// Anchor entities in element order: the vertex anchors, then the face anchors.
     pub anchors: Vec<Entity>,
     /// Faces and tets of the patch's solved layers (for reports).
@@ -139,6 +148,7 @@ impl Default for PackedIndex {
             vertices: Vec::new(),
             index: Default::default(),
             own: 0,
+            held: 0,
             anchors: Vec::new(),
             faces: 0,
             tets: 0,

@@ -140,6 +140,11 @@ impl Builder {
             }
             patches.push(self.patch(&scene, pi, p, &bodies)?);
         }
+        for (pi, p) in scene.patches.iter().enumerate() {
+            if let Some(c) = &p.contact {
+                patches[pi].contact_with = self.contact_with(pi, &c.with, &scene, &patches)?;
+            }
+        }
         let (notes, memory) = (self.notes.take(), self.memory.get());
         Ok(BuiltScene { path: self.file.clone(), scene, bodies, patches, notes, memory })
     }
@@ -186,6 +191,7 @@ impl Builder {
             couplings: Vec::new(),
             anchors: None,
             contact: None,
+            contact_with: Vec::new(),
         };
         if let Some((_, message)) = super::geometry::geometry_error(&body) {
             return Err(self.err(format!("{at}.mesh"), message));
@@ -349,6 +355,7 @@ impl Builder {
             couplings,
             anchors,
             contact,
+            contact_with: Vec::new(),
         };
         if let Some((li, message)) = super::geometry::geometry_error(&patch) {
             let field = match li.checked_sub(first) {

@@ -41,6 +41,15 @@ pub struct BuiltPatch {
     pub couplings: Vec<BuiltCoupling>,
     pub anchors: Option<BuiltAnchors>,
     pub contact: Option<crate::model::Contact>,
+    /// What else its skin touches (`contact.with`).
+    pub contact_with: Vec<ContactWith>,
+}
+
+/// A scene body or another patch a patch's contact names (indices into `BuiltScene`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ContactWith {
+    Body(usize),
+    Patch(usize),
 }
 
 /// A coupling's kernels, clustered at load (SI units).

@@ -1,10 +1,10 @@
 //! A patch's `contact`: validated and converted to SI (`model::Contact`), with what it needs
 //! of the rest of the patch, and a start state whose shell surfaces do not cross.
 
-use super::built::{BuiltLayer, LayerMesh};
+use super::built::{BuiltLayer, BuiltPatch, ContactWith, LayerMesh};
 use super::context::Builder;
 use super::error::SceneError;
-use super::schema::{ContactSpec, PatchSpec};
+use super::schema::{ContactSpec, PatchSpec, Scene};
 use crate::model::{Contact, LayerKind};
 use crate::solve::SolveMode;
 
@@ -73,5 +73,52 @@ impl Builder {
             return Err(self.err(at.to_string(), message));
         }
         Ok(Contact { thickness, reach, friction: c.friction, sticking })
+    }
+
+    /// `patches[pi].contact.with`: each name a scene body or another patch with contact of its
+    /// own (so that the two are solved in turn, each against the other's latest surface), whose
+    /// surfaces are not remeshed.
+    pub(super) fn contact_with(
+        &self,
+        pi: usize,
+        names: &[String],
+        scene: &Scene,
+        patches: &[BuiltPatch],
+    ) -> Result<Vec<ContactWith>, SceneError> {
+        let at = |i: usize| format!("patches[{pi}] (\"{}\").contact.with[{i}]", scene.patches[pi].name);
+        let mut out = Vec::new();
+        for (i, name) in names.iter().enumerate() {
+            let with = if let Some(b) = scene.bodies.iter().position(|b| &b.name == name) {
+                if patches[pi].body == Some(b) {
+                    return Err(self.err(at(i), format!("the patch sits on \"{name}\": name another body")));
+                }
+                ContactWith::Body(b)
+            } else if let Some(q) = scene.patches.iter().position(|q| &q.name == name) {
+                if q == pi {
+                    return Err(self.err(at(i), "names the patch itself (its own layers touch already)"));
+                }
+                if patches[q].contact.is_none() {
+                    let message = format!("the patch \"{name}\" has no contact of its own: give it one");
+                    return Err(self.err(at(i), message));
+                }
+                ContactWith::Patch(q)
+            } else {
+                let known: Vec<String> = scene
+                    .bodies
+                    .iter()
+                    .map(|b| &b.name)
+                    .chain(scene.patches.iter().map(|q| &q.name))
+                    .filter(|n| *n != &scene.patches[pi].name)
+                    .map(|n| format!("\"{n}\""))
+                    .collect();
+                let message = format!("no body or patch is named \"{name}\" (known: {})", known.join(", "));
+                return Err(self.err(at(i), message));
+            };
+            if out.contains(&with) {
+                return Err(self.err(at(i), format!("names \"{name}\" twice")));
+            }
+            out.push(with);
+        }
+        Ok(out)
     }
 }

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use bevy_ecs::prelude::*;
 use rand::{Rng, SeedableRng};
 
-use super::built::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, LayerMesh};
+use super::built::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene, ContactWith, LayerMesh};
 use super::geometry::{final_layers, lumped_mass, prescribed, shell_rest, tet_rest};
 use crate::mesh;
 use crate::mesh::imperfection::Imperfection;
@@ -31,8 +31,33 @@ pub fn spawn(world: &mut World, scene: &BuiltScene) -> Vec<Entity> {
         })
         .collect();
     let first = bodies.len() as u32;
-    let patches = scene.patches.iter().enumerate();
-    patches.map(|(i, p)| spawn_patch(world, p, first + i as u32, Role::Patch(p.body.map(|b| &bodies[b]))).0).collect()
+    let spawned: Vec<(Entity, Vec<Entity>)> = scene
+        .patches
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let (patch, layers, _) = spawn_patch(world, p, first + i as u32, Role::Patch(p.body.map(|b| &bodies[b])));
+            (patch, layers)
+        })
+        .collect();
+    // What else each patch's skin touches: a body's layer, another patch's skin layers.
+    for (p, (patch, _)) in scene.patches.iter().zip(&spawned) {
+        let layers: Vec<Entity> = p
+            .contact_with
+            .iter()
+            .flat_map(|w| match *w {
+                ContactWith::Body(b) => vec![bodies[b].0],
+                ContactWith::Patch(q) => {
+                    let other = &scene.patches[q].layers;
+                    (0..other.len()).filter(|&l| other[l].kind == LayerKind::Shell).map(|l| spawned[q].1[l]).collect()
+                }
+            })
+            .collect();
+        if !layers.is_empty() {
+            world.entity_mut(*patch).insert(ContactObstacles(layers));
+        }
+    }
+    spawned.into_iter().map(|(patch, _)| patch).collect()
 }
 
 /// A spawned body's layer and the entities of its mesh vertices.

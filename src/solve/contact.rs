@@ -23,7 +23,12 @@ use crate::contact::{gather, ContactReport, ContactState};
 /// The index of the registered kind `term` (a field of `packed.elements`) among the terms.
 fn kind(packed: &PackedPatch, term: &dyn Term) -> usize {
     let at = term as *const dyn Term;
-    packed.elements.terms().iter().position(|t| std::ptr::addr_eq(*t as *const dyn Term, at)).expect("a registered kind")
+    packed
+        .elements
+        .terms()
+        .iter()
+        .position(|t| std::ptr::addr_eq(*t as *const dyn Term, at))
+        .expect("a registered kind")
 }
 
 /// Puts the listed pairs inside the pattern: new scatter maps when their couplings are in it,

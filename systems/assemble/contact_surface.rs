@@ -8,33 +8,43 @@ use skinsim::solve::PackedPatch;
 
 use super::{ElementItems, LayerItems};
 
+/// What the patch's contact declares: the contact, its kernels (whose layers do not touch) and
+/// the layers it touches besides its own (held).
+pub(super) struct With<'a> {
+    pub contact: Option<&'a Contact>,
+    pub kernels: Option<&'a PatchKernels>,
+    pub obstacles: &'a [Entity],
+}
+
 pub(super) fn rebuild(
     packed: &mut PackedPatch,
     index: &PackedIndex,
     patch_layers: &PatchLayers,
-    contact: Option<&Contact>,
-    kernels: Option<&PatchKernels>,
+    with: With,
     layers: &Query<LayerItems>,
     items: &ElementItems,
 ) {
+    let With { contact, kernels, obstacles } = with;
     let Some(c) = contact else {
         packed.contact = None;
         return;
     };
     // Shell layers (the skin, half its thickness on each side) and kinematic ones (bodies in
-    // the patch: obstacles).
-    let (entities, surfaces): (Vec<Entity>, Vec<SurfaceLayer>) = patch_layers
-        .entities()
-        .iter()
-        .filter_map(|&l| layers.get(l).ok().map(|item| (l, item)))
-        .filter(|(_, l)| matches!(l.layer.kind, LayerKind::Shell | LayerKind::Kinematic) && !l.anchor_body)
-        .filter_map(|(e, l)| l.faces.map(|f| (e, f, l.layer.kind == LayerKind::Shell)))
-        .map(|(e, faces, shell)| {
+    // the patch: obstacles); then other patches' skins and scene bodies it touches (held).
+    let own = patch_layers.entities().iter().map(|&l| (l, true));
+    let (entities, surfaces): (Vec<Entity>, Vec<SurfaceLayer>) = own
+        .chain(obstacles.iter().map(|&l| (l, false)))
+        .filter_map(|(l, mine)| layers.get(l).ok().map(|item| (l, item, mine)))
+        .filter(|(_, l, mine)| {
+            matches!(l.layer.kind, LayerKind::Shell | LayerKind::Kinematic) && !(*mine && l.anchor_body)
+        })
+        .filter_map(|(e, l, mine)| l.faces.map(|f| (e, f, l.layer.kind == LayerKind::Shell, mine)))
+        .map(|(e, faces, shell, mine)| {
             (
                 e,
                 SurfaceLayer {
                     half_thickness: if shell { 0.5 * c.thickness } else { 0.0 },
-                    moving: shell,
+                    moving: shell && mine,
                     triangles: faces
                         .entities()
                         .iter()

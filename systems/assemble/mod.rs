@@ -63,20 +63,30 @@ pub struct PatchItems {
     pub packed: &'static mut PackedPatch,
     pub index: &'static mut PackedIndex,
     pub contact: Option<&'static Contact>,
+    pub obstacles: Option<&'static ContactObstacles>,
 }
 
 pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, items: ElementItems) {
     for patch in &mut patches {
-        let PatchItemsItem { layers: patch_layers, bodies, kernels: patch_kernels, mut packed, mut index, contact } =
-            patch;
+        let PatchItemsItem {
+            layers: patch_layers,
+            bodies,
+            kernels: patch_kernels,
+            mut packed,
+            mut index,
+            contact,
+            obstacles,
+        } = patch;
         let (packed, index) = (packed.as_mut(), index.as_mut());
         let bodies = bodies.map_or(&[][..], |b| &b.0);
-        let key = topology_key(patch_layers.entities().iter().chain(bodies), &layers);
+        let obstacles = obstacles.map_or(&[][..], |o| &o.0);
+        let key = topology_key(patch_layers.entities().iter().chain(bodies).chain(obstacles), &layers);
         let rebuilt = key != index.key;
         if rebuilt {
-            rebuild::rebuild(packed, index, patch_layers, bodies, &layers, &items);
+            rebuild::rebuild(packed, index, patch_layers, bodies, obstacles, &layers, &items);
             anchor_springs::rebuild(packed, index, patch_layers, &layers, &items.anchors);
-            contact_surface::rebuild(packed, index, patch_layers, contact, patch_kernels, &layers, &items);
+            let with = contact_surface::With { contact, kernels: patch_kernels, obstacles };
+            contact_surface::rebuild(packed, index, patch_layers, with, &layers, &items);
             index.key = key;
         }
         if let Some(pk) = patch_kernels {
@@ -92,8 +102,9 @@ pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, 
             let (p, v, _, f) = items.vertices.get(e).expect("vertex of a live layer");
             state.x[i] = p.0;
             state.v[i] = v.0;
-            if state.fixed[i] != f.0 {
-                state.fixed[i] = f.0;
+            let f = if i < index.held { f.0 } else { [true; 3] };
+            if state.fixed[i] != f {
+                state.fixed[i] = f;
                 fixed_changed = true;
             }
         }

@@ -12,12 +12,14 @@ use super::{ElementItems, LayerItems, LayerItemsItem};
 
 /// Packs the patch's vertices (each once), their state and ties, and every element of its
 /// layers, and drops the solver's cache. `bodies`: shared body layers packed after the patch's
-/// own, held fixed (`PatchBodies`).
+/// own, held fixed (`PatchBodies`); `obstacles`: layers contact touches besides them, packed
+/// last and held (`ContactObstacles`).
 pub(super) fn rebuild(
     packed: &mut PackedPatch,
     index: &mut PackedIndex,
     patch_layers: &PatchLayers,
     bodies: &[Entity],
+    obstacles: &[Entity],
     layers: &Query<LayerItems>,
     items: &ElementItems,
 ) {
@@ -29,6 +31,8 @@ pub(super) fn rebuild(
     pack_vertices(index, &own, layers);
     index.own = index.vertices.len();
     pack_vertices(index, bodies, layers);
+    index.held = index.vertices.len();
+    pack_vertices(index, obstacles, layers);
     let solved: Vec<Entity> = own.into_iter().chain(bodies.iter().copied()).collect();
     let n = index.vertices.len();
     let state = &mut packed.state;
@@ -41,11 +45,11 @@ pub(super) fn rebuild(
         state.x[i] = p.0;
         state.v[i] = v.0;
         state.mass[i] = m.0;
-        state.fixed[i] = f.0;
+        state.fixed[i] = if i < index.held { f.0 } else { [true; 3] };
     }
     let idx = |e: &Entity| index.index[e];
     state.tie = (0..n as u32).map(|i| (i, [false; 3])).collect();
-    for (i, &e) in index.vertices.iter().enumerate() {
+    for (i, &e) in index.vertices[..index.held].iter().enumerate() {
         if let Ok(t) = items.ties.get(e) {
             if let Some(&m) = index.index.get(&t.master) {
                 if (m as usize) < i {

@@ -164,6 +164,10 @@ pub struct ContactSpec {
     /// thickness when absent.
     #[serde(default)]
     pub sticking: Option<f64>,
+    /// Other patches and scene bodies the patch's skin touches, by name (solved in turn:
+    /// `systems::solve`).
+    #[serde(default)]
+    pub with: Vec<String>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
