@@ -312,6 +312,13 @@ fn bad_contact_input_is_refused_naming_the_field() {
     mentions(&e, &["patches[0] (\"p\").contact", "TrustRegion"]);
     let e = refused(&CONTACT.replace("contact: Some((thickness: 0.1, d_hat: 0.05)),", "contact: Some((d_hat: 0.05)),"));
     mentions(&e, &["thickness"]);
+    // A start closer than the thickness: a body 0.02 under a film whose barrier keeps 0.05.
+    let close = CONTACT.replace(
+        "layers: [\n",
+        "layers: [\n                Layer(name: \"floor\", kind: Kinematic, mesh: Grid(size: (4.0, 2.0), cells: (4, 2), z: -0.02)),\n",
+    );
+    let e = refused(&close);
+    mentions(&e, &["patches[0] (\"p\").contact", "closer than the contact thickness", "layer \"floor\""]);
     // `with`: a body or another patch that exists and has contact of its own.
     let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, with: [\"nobody\"])"));
     mentions(&e, &["patches[0] (\"p\").contact.with[0]", "no body or patch is named \"nobody\""]);

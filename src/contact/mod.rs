@@ -193,7 +193,8 @@ impl ContactState {
             self.stiffness_max = 100.0 * self.stiffness_min;
             let gg: f64 = gb.iter().map(|g| g * g).sum();
             let balance = if gg > 0.0 { -ge.iter().zip(gb).map(|(a, b)| a * b).sum::<f64>() / gg } else { 0.0 };
-            self.stiffness = balance.clamp(self.stiffness_min, self.stiffness_max);
+            // (max, min: a non-finite Hessian leaves no NaN bound; the solve reports it)
+            self.stiffness = balance.max(self.stiffness_min).min(self.stiffness_max);
             true
         } else {
             let small = 1e-3;

@@ -5,6 +5,7 @@ use super::built::{BuiltLayer, BuiltPatch, ContactWith, LayerMesh};
 use super::context::Builder;
 use super::error::SceneError;
 use super::schema::{ContactSpec, PatchSpec, Scene};
+use crate::contact::{Surface, SurfaceLayer};
 use crate::model::{Contact, LayerKind};
 use crate::solve::SolveMode;
 
@@ -83,6 +84,7 @@ impl Builder {
         pi: usize,
         names: &[String],
         scene: &Scene,
+        bodies: &[BuiltPatch],
         patches: &[BuiltPatch],
     ) -> Result<Vec<ContactWith>, SceneError> {
         let at = |i: usize| format!("patches[{pi}] (\"{}\").contact.with[{i}]", scene.patches[pi].name);
@@ -119,6 +121,87 @@ impl Builder {
             }
             out.push(with);
         }
+        self.start_clearance(pi, &out, bodies, patches)?;
         Ok(out)
+    }
+
+    /// Refuses a start state with a pair of the contact surfaces (the patch's own, and what
+    /// `with` names) closer than the barrier's offset: its barrier would be infinite.
+    fn start_clearance(
+        &self,
+        pi: usize,
+        with: &[ContactWith],
+        bodies: &[BuiltPatch],
+        patches: &[BuiltPatch],
+    ) -> Result<(), SceneError> {
+        let p = &patches[pi];
+        let Some(c) = p.contact else { return Ok(()) };
+        // (layer, its patch's name, its index among this patch's layers: Some where this patch
+        // moves it)
+        let first = usize::from(p.body.is_some());
+        // (a body under KCK18 anchors is not a contact surface: the skin starts on it)
+        let anchored = p.anchors.as_ref().map(|a| a.body);
+        let mut parts: Vec<(&BuiltLayer, &str, Option<usize>)> = p.layers[first..]
+            .iter()
+            .enumerate()
+            .map(|(i, l)| (i + first, l))
+            .filter(|(i, _)| anchored != Some(*i))
+            .map(|(i, l)| (l, p.name.as_str(), Some(i)))
+            .collect();
+        for w in with {
+            match *w {
+                ContactWith::Body(b) => parts.push((&bodies[b].layers[0], &bodies[b].name, None)),
+                ContactWith::Patch(q) => {
+                    let o = &patches[q];
+                    let own = &o.layers[usize::from(o.body.is_some())..];
+                    parts.extend(own.iter().filter(|l| l.kind == LayerKind::Shell).map(|l| (l, o.name.as_str(), None)));
+                }
+            }
+        }
+        let (mut layers, mut x, mut kept, mut ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (i, (l, _, own)) in parts.iter().enumerate() {
+            let LayerMesh::Surface(m) = &l.mesh else { continue };
+            let shell = l.kind == LayerKind::Shell;
+            if !shell && l.kind != LayerKind::Kinematic {
+                continue;
+            }
+            let base = x.len() as u32;
+            x.extend_from_slice(&m.rest);
+            layers.push(SurfaceLayer {
+                triangles: m.faces.iter().map(|t| t.map(|v| v + base)).collect(),
+                half_thickness: if shell { 0.5 * c.thickness } else { 0.0 },
+                moving: shell && own.is_some(),
+            });
+            kept.push(i);
+            ends.push(x.len() as u32);
+        }
+        let at_layer = |k: usize| kept.iter().position(|&i| parts[i].2 == Some(k)).map(|i| i as u32);
+        let bound: Vec<(u32, u32)> = p
+            .couplings
+            .iter()
+            .filter(|k| k.upper >= first && k.lower >= first)
+            .filter_map(|k| Some((at_layer(k.upper)?, at_layer(k.lower)?)))
+            .collect();
+        let surface = Surface::new(&layers, x.clone(), c.reach, &bound);
+        let pairs = crate::contact::broad::candidates(&surface, &x, None, surface.max_offset());
+        let inside = pairs
+            .iter()
+            .map(|q| (q.squared_distance(&crate::contact::gather(&x, &q.v)).sqrt(), q))
+            .filter(|(d, q)| *d <= q.barrier.offset)
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        let Some((d, q)) = inside else { return Ok(()) };
+        let owner = |v: u32| {
+            let l = ends.iter().position(|&e| v < e).unwrap_or(0);
+            let (layer, patch, _) = parts[kept[l]];
+            format!("layer \"{}\" of \"{patch}\"", layer.name)
+        };
+        let message = format!(
+            "the start state is closer than the contact thickness: {} and {} are {d:.3e} m apart where the \
+             barrier keeps {:.3e} m: move them apart or give a smaller thickness",
+            owner(q.v[0]),
+            owner(q.v[3]),
+            q.barrier.offset
+        );
+        Err(self.err(format!("patches[{pi}] (\"{}\").contact", p.name), message))
     }
 }

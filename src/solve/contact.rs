@@ -186,6 +186,13 @@ pub(super) fn continuation(
         let end: Vec<DVec3> = x.iter().zip(&d).map(|(p, d)| *p + *d).collect();
         let state = packed.contact.as_mut().expect("a patch with contact");
         let pairs = state.pairs_near(&x, Some(&end), &packed.state.fixed);
+        if state.report.substeps == 0 {
+            // (a pair inside its offset at the start has an infinite barrier: nothing to solve)
+            let inside = pairs.iter().map(|p| (p.squared_distance(&gather(&x, &p.v)).sqrt(), p.barrier.offset));
+            if let Some((distance, offset)) = inside.filter(|(d, o)| d <= o).min_by(|a, b| a.0.total_cmp(&b.0)) {
+                return Err(SolveError::TooClose { distance, offset });
+            }
+        }
         let alpha = if d.iter().all(|v| *v == DVec3::ZERO) { 1.0 } else { ContactState::step_bound(&pairs, &x, &d) };
         state.report.substeps += 1;
         tracing::debug!(substep = state.report.substeps, alpha, pairs = pairs.len(), "contact continuation");

@@ -29,4 +29,9 @@ pub enum SolveError {
     NoDescent { iterations: u32 },
     #[error("prescribed vertices could not reach their targets without passing through the skin ({substeps} solves)")]
     Blocked { substeps: u32 },
+    #[error(
+        "the skin starts {distance:.3e} m from what it touches, inside the contact thickness's {offset:.3e} m: \
+         move it apart or give a smaller thickness"
+    )]
+    TooClose { distance: f64, offset: f64 },
 }
