@@ -100,7 +100,7 @@ pub(crate) fn gather<const NV: usize>(x: &[DVec3], v: &[u32; NV]) -> [DVec3; NV]
 }
 
 /// The gradient and Hessian block of vertex slot k of an element's local derivatives.
-fn local_block<L: Local>(l: &L, k: usize) -> (DVec3, DMat3) {
+pub(crate) fn local_block<L: Local>(l: &L, k: usize) -> (DVec3, DMat3) {
     let (o, g) = (3 * k, l.gradient());
     let gv = DVec3::new(g[o], g[o + 1], g[o + 2]);
     let hv = DMat3::from_cols_array(&std::array::from_fn(|i| l.hessian(o + i % 3, o + i / 3)));
@@ -172,4 +172,11 @@ pub(crate) fn renumbered<V: Vertices>(v: V, to: &dyn Fn(u32) -> u32) -> V {
     let mut out = v;
     out.as_mut().iter_mut().for_each(|i| *i = to(*i));
     out
+}
+
+/// Adds a 4-vertex element's local gradient (12 coordinates) into `g` (the pair kinds).
+pub(crate) fn add_local_gradient(v: &[u32; 4], local: &nalgebra::SVector<f64, 12>, g: &mut [DVec3]) {
+    for (k, &vk) in v.iter().enumerate() {
+        g[vk as usize] += DVec3::new(local[3 * k], local[3 * k + 1], local[3 * k + 2]);
+    }
 }

@@ -6,7 +6,7 @@ use glam::{DMat3, DVec3};
 
 use crate::contact::{gather, ContactPairs};
 use crate::physics::psd::Filter;
-use crate::solve::element::{sum_chunks, Part, Term, TermList};
+use crate::solve::element::{add_local_gradient, local_block, sum_chunks, Part, Term, TermList};
 use crate::solve::scatter::{Derivatives, Scatter};
 
 impl ContactPairs {
@@ -39,11 +39,8 @@ impl Term for ContactPairs {
         acc.class(&index, map, |&i| self.pairs[i].v, |&i| self.eval(i, x, filter))
     }
     fn add_gradient(&self, x: &[DVec3], g: &mut [DVec3]) {
-        for i in 0..self.pairs.len() {
-            let (_, gl, _) = self.eval(i, x, Filter::Exact);
-            for (k, &v) in self.pairs[i].v.iter().enumerate() {
-                g[v as usize] += DVec3::new(gl[3 * k], gl[3 * k + 1], gl[3 * k + 2]);
-            }
+        for (i, p) in self.pairs.iter().enumerate() {
+            add_local_gradient(&p.v, &self.eval(i, x, Filter::Exact).1, g);
         }
     }
     /// (no share in the energy's round-off scale: the barrier vanishes at rest)
@@ -62,12 +59,7 @@ impl Term for ContactPairs {
         self.stiffness * p.energy(&gather(x, &p.v))
     }
     fn block(&self, i: usize, k: usize, x: &[DVec3]) -> (DVec3, DMat3) {
-        let (_, g, h) = self.eval(i, x, Filter::Exact);
-        let o = 3 * k;
-        (
-            DVec3::new(g[o], g[o + 1], g[o + 2]),
-            DMat3::from_cols_array(&std::array::from_fn(|i| h[(o + i % 3, o + i / 3)])),
-        )
+        local_block(&self.eval(i, x, Filter::Exact), k)
     }
 }
 

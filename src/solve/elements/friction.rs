@@ -6,7 +6,7 @@ use glam::{DMat3, DVec3};
 
 use crate::contact::FrictionPairs;
 use crate::physics::psd::Filter;
-use crate::solve::element::{sum_chunks, Part, Term, TermList};
+use crate::solve::element::{add_local_gradient, local_block, sum_chunks, Part, Term, TermList};
 use crate::solve::scatter::{Derivatives, Scatter};
 
 impl FrictionPairs {
@@ -32,10 +32,7 @@ impl Term for FrictionPairs {
     }
     fn add_gradient(&self, x: &[DVec3], g: &mut [DVec3]) {
         for (i, p) in self.pairs.iter().enumerate() {
-            let (_, gl, _) = self.eval(i, x);
-            for (k, &v) in p.v.iter().enumerate() {
-                g[v as usize] += DVec3::new(gl[3 * k], gl[3 * k + 1], gl[3 * k + 2]);
-            }
+            add_local_gradient(&p.v, &self.eval(i, x).1, g);
         }
     }
     /// (no share in the energy's round-off scale: it is a load, not a material)
@@ -50,12 +47,7 @@ impl Term for FrictionPairs {
         self.pairs[i].energy(x, self.eps)
     }
     fn block(&self, i: usize, k: usize, x: &[DVec3]) -> (DVec3, DMat3) {
-        let (_, g, h) = self.eval(i, x);
-        let o = 3 * k;
-        (
-            DVec3::new(g[o], g[o + 1], g[o + 2]),
-            DMat3::from_cols_array(&std::array::from_fn(|i| h[(o + i % 3, o + i / 3)])),
-        )
+        local_block(&self.eval(i, x), k)
     }
 }
 
