@@ -239,6 +239,28 @@ fn two_patches_never_pass_through_each_other() {
     assert!(last.2 < 0.0, "without contact between the patches the upper strip passes below: {} m", last.2);
 }
 
+/// Contact against a scene body (`scenes/examples/press_body.ron`: the sphere of press_sphere.ron
+/// as a body of the scene, named in the sheet's `contact.with`): no frame has the sheet crossing
+/// the sphere or nearer than half its 0.3 mm thickness; without `with`, the sphere passes
+/// through.
+#[test]
+fn a_sheet_touches_a_scene_body_it_names() {
+    let rel = "examples/press_body.ron";
+    let measure = |sim: &mut Simulation| {
+        let (_, xs, fs) = sim.layer_surface("sheet", "sheet");
+        let (_, xb, fb) = sim.layer_surface("ball", "ball");
+        let (x, faces) = merged(&[(xs.clone(), fs.clone()), (xb.clone(), fb.clone())]);
+        (crossing_pairs(&faces, &x).len(), closest_between((&xs, &fs), (&xb, &fb)))
+    };
+    for (frame, &(crossing, closest)) in every_frame(&load(rel), measure).iter().enumerate() {
+        assert_eq!(crossing, 0, "frame {}: the sheet crosses the body", frame + 1);
+        assert!(closest > 0.15e-3, "frame {}: {closest} m from the body", frame + 1);
+    }
+    let without = variant(rel, &[(", with: [\"ball\"]", "")]);
+    let crossed = every_frame(&without, measure).iter().filter(|m| m.0 > 0).count();
+    assert!(crossed > 0, "without `with` the body passes through the sheet");
+}
+
 /// Determinism: the folded strip (contact active from frame 5) gives the same bits with 1 and
 /// 2 threads.
 #[test]
