@@ -1,7 +1,8 @@
 //! Log (issue 64): each patch's active contact pairs as line segments between their closest
 //! points, coloured by how close they are (red: at the thickness, yellow: at the barrier's
 //! reach), and per patch the contact figures of the frame: active pairs, the smallest distance
-//! over the thickness, the barrier stiffness, CCD cuts and re-analyses.
+//! over the thickness, the barrier stiffness, CCD cuts and re-analyses. LK14 kernels released
+//! where skin touches skin are magenta segments from the skin's average to the body point.
 
 use bevy_ecs::prelude::*;
 use skinsim::contact::{distance::closest_points, gather};
@@ -33,6 +34,23 @@ pub fn log_contact(
         }
         let base = format!("patches/{}/contact", patch.name);
         let _ = rec.log(format!("{base}/pairs"), &rerun::LineStrips3D::new(segments).with_colors(colours));
+        // Released kernels (`solve::release`): from the skin's average to the body point the
+        // kernel would hold it to.
+        let released = packed.contact.as_ref().map_or(&[][..], |c| &c.released[..]);
+        let kernels = &packed.constraints.kernels;
+        let gaps: Vec<[[f32; 3]; 2]> = kernels
+            .iter()
+            .zip(released)
+            .filter(|(_, r)| **r)
+            .map(|(k, _)| {
+                let body = k.lower_point(x);
+                [(body + k.value(x)).as_vec3().to_array(), body.as_vec3().to_array()]
+            })
+            .collect();
+        let _ = rec.log(
+            format!("{base}/released_kernels"),
+            &rerun::LineStrips3D::new(gaps).with_colors([rerun::Color::from_rgb(230, 0, 230)]),
+        );
         let Some(c) = report.patches.iter().find(|r| r.name == patch.name).and_then(|r| r.outcome.contact) else {
             continue;
         };
@@ -44,6 +62,9 @@ pub fn log_contact(
         let _ = rec.log(format!("{stats}/stiffness"), &rerun::Scalars::new([c.stiffness]));
         let _ = rec.log(format!("{stats}/ccd_cuts"), &rerun::Scalars::new([c.ccd_cuts as f64]));
         let _ = rec.log(format!("{stats}/reanalyses"), &rerun::Scalars::new([c.reanalyses as f64]));
+        if c.released_kernels > 0 {
+            let _ = rec.log(format!("{stats}/released_kernels"), &rerun::Scalars::new([c.released_kernels as f64]));
+        }
         if c.friction_pairs > 0 {
             let _ = rec.log(format!("{stats}/friction_pairs"), &rerun::Scalars::new([c.friction_pairs as f64]));
             let _ = rec.log(format!("{stats}/slip"), &rerun::Scalars::new([c.slip]));

@@ -69,6 +69,13 @@ pub struct ContactState {
     /// no pair it left out can come within offset + d_hat (a Verlet list's rule), and its
     /// list still holds every pair that can be active or crossed.
     pub listed_at: Vec<DVec3>,
+    /// Which kernels the last frame released (`solve::release`).
+    pub released: Vec<bool>,
+    /// The kinematic layers that kernels bind skin to, as one surface whose pairs are the
+    /// body's parts closer than `fold` to each other (`Surface::close_vertices`; neighbours
+    /// within twice that at rest are not pairs): where the body folds onto or through itself.
+    pub body: Surface,
+    pub fold: f64,
 }
 
 /// Per frame: what contact did (the report's `contact` object).
@@ -100,6 +107,12 @@ pub struct ContactReport {
     /// frame (m): below the sticking slip a pair holds.
     pub friction_pairs: usize,
     pub slip: f64,
+    /// LK14 kernels left out of the frame's rows where their skin touches
+    /// (`solve::release`), the solves it took, and the largest distance of a released
+    /// kernel's skin average from its body point at the frame's end (m).
+    pub released_kernels: usize,
+    pub release_attempts: u32,
+    pub kernel_gap: f64,
 }
 
 impl ContactState {

@@ -184,6 +184,20 @@ impl Surface {
         self.rest.clone()
     }
 
+    /// The vertices of admitted pairs closer than `distance` at `x`, and of triangles that
+    /// cross each other there (`mesh::crossing`).
+    pub fn close_vertices(&self, x: &[DVec3], distance: f64) -> BTreeSet<u32> {
+        let mut out: BTreeSet<u32> = super::broad::candidates(self, x, None, distance)
+            .into_iter()
+            .filter(|p| p.squared_distance(&super::gather(x, &p.v)) < distance * distance)
+            .flat_map(|p| p.v)
+            .collect();
+        for (a, b) in crate::mesh::crossing::crossing_pairs(&self.triangles, x) {
+            out.extend(self.triangles[a].iter().chain(&self.triangles[b]));
+        }
+        out
+    }
+
     /// The packed vertices of the surface (a set, for tests and reports).
     pub fn vertex_set(&self) -> BTreeSet<u32> {
         self.points.iter().copied().collect()

@@ -17,10 +17,10 @@ use glam::DVec3;
 
 use super::constraints::Constraints;
 use super::contact;
-use super::error::{Quantity, SolveError};
+use super::error::{Quantity, SolveError, PINCH_ITERATIONS, PINCH_STEP};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
-    correction, evaluate, line_search, step, FrameOutcome, FrameStart, Search, ARMIJO, MAX_ESCAPES, ROUND_OFF,
+    correction, evaluate, search_step, step, FrameOutcome, FrameStart, Search, ARMIJO, MAX_ESCAPES, ROUND_OFF,
 };
 use super::kkt::{KktPoint, KktSystem};
 use super::linear::symmetric_product_into;
@@ -69,6 +69,8 @@ pub(super) fn newton_kkt(
     let mut stable_step = false;
     // Contact: the pair list changed since the pattern's maps were made (`contact::fit`).
     let mut relisted = false;
+    // Contact: iterations in a row whose step the collision test cut below PINCH_STEP.
+    let mut pinched = 0;
     let result = loop {
         let filter = progress.filter();
         if std::mem::take(&mut relisted) && contact::fit(packed, pattern) {
@@ -221,11 +223,16 @@ pub(super) fn newton_kkt(
         let first = contact::bound_step(packed, pattern, &dx);
         relisted |= contact;
         let search = Search { dx: &dx, slope: merit_slope, phi: phi_merit, residual, energy_scale, tolerance, first };
-        let accepted = line_search(packed, pattern, search, &merit, &mut out);
-        if !accepted {
+        let Some(alpha) = search_step(packed, pattern, search, &merit, &mut out) else {
             // A rejected step at the round-off floor still has to satisfy the constraints.
             out.converged &= violation <= CONSTRAINT_TOLERANCE;
             break Ok(());
+        };
+        // (the collision test, not the energy, keeps the steps short: the kernels' rows press
+        // skin into skin, `release`)
+        pinched = if contact && first < PINCH_STEP && alpha <= first { pinched + 1 } else { 0 };
+        if pinched >= PINCH_ITERATIONS {
+            break Err(SolveError::Pinched { iterations: out.iterations });
         }
         std::mem::swap(&mut lambda, &mut next_lambda);
     };

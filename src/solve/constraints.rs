@@ -42,6 +42,22 @@ pub fn vertex_rings(faces: &[[u32; 3]]) -> HashMap<u32, Vec<[u32; 3]>> {
 }
 
 impl KernelRows {
+    /// The body's side: sum_j w_j (x_j + t_j n_j).
+    pub fn lower_point(&self, x: &[DVec3]) -> DVec3 {
+        self.lower
+            .iter()
+            .map(|t| {
+                let n = ring_normal(&t.ring, x).normalize_or_zero();
+                (x[t.v as usize] + n * t.offset) * t.w
+            })
+            .sum()
+    }
+
+    /// The kernel's value c_k (its three rows): the skin's side minus the body's.
+    pub fn value(&self, x: &[DVec3]) -> DVec3 {
+        self.upper.iter().map(|&(v, w)| x[v as usize] * w).sum::<DVec3>() - self.lower_point(x)
+    }
+
     /// A kernel's rows from its packed weights on both layers; `offset` is the normal offset of
     /// the lower layer, `fixed` the held coordinates of every packed vertex.
     pub fn new(
@@ -120,21 +136,7 @@ impl Constraints {
 
     /// The constraint values c_k (one vector per kernel).
     pub fn values(&self, x: &[DVec3]) -> Vec<DVec3> {
-        self.kernels
-            .iter()
-            .map(|k| {
-                let up: DVec3 = k.upper.iter().map(|&(v, w)| x[v as usize] * w).sum();
-                let low: DVec3 = k
-                    .lower
-                    .iter()
-                    .map(|t| {
-                        let n = ring_normal(&t.ring, x).normalize_or_zero();
-                        (x[t.v as usize] + n * t.offset) * t.w
-                    })
-                    .sum();
-                up - low
-            })
-            .collect()
+        self.kernels.iter().map(|k| k.value(x)).collect()
     }
 
     /// |c(x)|_1, the l1 merit function's penalty term.

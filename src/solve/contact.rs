@@ -225,7 +225,7 @@ pub(super) fn continuation(
 
 /// The target's prescribed coordinates with the free ones of `x` (exactly: no round-off of
 /// x + 1 (target - x)).
-fn target_with_free(target: &[DVec3], x: &[DVec3], fixed: &[[bool; 3]]) -> Vec<DVec3> {
+pub(super) fn target_with_free(target: &[DVec3], x: &[DVec3], fixed: &[[bool; 3]]) -> Vec<DVec3> {
     target
         .iter()
         .zip(x)

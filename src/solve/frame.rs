@@ -10,6 +10,7 @@ use super::linear::CholeskySolver;
 use super::newton::newton;
 use super::packed::PackedPatch;
 use super::pattern::Pattern;
+use super::release;
 use super::settings::SolverSettings;
 
 /// Solves one frame in place on `packed.state.x` (prescribed coordinates already at their targets).
@@ -29,20 +30,20 @@ fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result
             (p, s)
         }
     };
+    if !packed.constraints.is_empty() && packed.contact.is_some() {
+        let mut cache = packed.cache.kkt.take();
+        let result = release::solve(packed, &mut pattern, &mut cache, settings, dt);
+        (packed.cache.kkt, packed.cache.system) = (cache, Some((pattern, chol)));
+        return result;
+    }
     if !packed.constraints.is_empty() {
         let mut kkt = match packed.cache.kkt.take() {
             Some(k) => k,
             None => KktSystem::build(&pattern, &packed.constraints, settings.kkt),
         };
         let before = kkt.factorizations;
-        let result = if packed.contact.is_some() {
-            contact::continuation(packed, &mut pattern, &mut Kkt(&mut kkt), settings, dt)
-        } else {
-            newton_kkt(packed, &mut pattern, &mut kkt, settings, dt)
-        };
-        let result = result.map(|mut o| {
+        let result = newton_kkt(packed, &mut pattern, &mut kkt, settings, dt).map(|mut o| {
             o.factorizations = (kkt.factorizations - before) as u32;
-            o.contact = contact::report(packed);
             o
         });
         packed.cache.kkt = Some(kkt);
@@ -84,7 +85,7 @@ impl contact::Loop for Direct<'_> {
 }
 
 /// The constrained loop with its KKT system.
-struct Kkt<'a>(&'a mut KktSystem);
+pub(super) struct Kkt<'a>(pub(super) &'a mut KktSystem);
 
 impl contact::Loop for Kkt<'_> {
     fn reanalyse(&mut self, packed: &PackedPatch, pattern: &Pattern, settings: &SolverSettings) {

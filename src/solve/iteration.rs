@@ -247,6 +247,17 @@ pub(super) fn line_search(
     total: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
     out: &mut FrameOutcome,
 ) -> bool {
+    search_step(packed, pattern, search, total, out).is_some()
+}
+
+/// `line_search`, returning the fraction of `dx` accepted.
+pub(super) fn search_step(
+    packed: &mut PackedPatch,
+    pattern: &Pattern,
+    search: Search,
+    total: &dyn Fn(&EnergyParts, &[DVec3]) -> f64,
+    out: &mut FrameOutcome,
+) -> Option<f64> {
     let Search { dx, slope, phi, residual, energy_scale, tolerance, first } = search;
     let clock = std::time::Instant::now();
     let x0 = packed.state.x.clone();
@@ -277,7 +288,7 @@ pub(super) fn line_search(
             out.converged = true;
         }
     }
-    accepted
+    accepted.then_some(alpha)
 }
 
 pub(super) fn mean_abs_diagonal(pattern: &Pattern, h: &[f64]) -> f64 {

@@ -20,6 +20,7 @@ pub mod ordering;
 pub mod packed;
 pub mod pattern;
 mod progress;
+mod release;
 pub(crate) mod scatter;
 pub mod settings;
 pub mod settle;
