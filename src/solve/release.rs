@@ -96,6 +96,8 @@ pub(super) fn solve(
     let folded = state.body.close_vertices(&target, state.fold);
     let mut factorizations = 0;
     let mut attempts = 0;
+    // (the stalled solves' iterations count in the frame's)
+    let mut spent = FrameOutcome::default();
     let result = loop {
         attempts += 1;
         let released = grown(&all.kernels, released(&all.kernels, &near, &folded), attempts - 1);
@@ -133,6 +135,13 @@ pub(super) fn solve(
             tracing::debug!(attempt = attempts, touching = more.len(), grown, "kernels released after a stall");
             if grown {
                 // (on from the stalled state: it crosses nothing, and fewer rows only relax it)
+                match result {
+                    Ok(out) => spent.absorb(out),
+                    Err(SolveError::NoDescent { iterations } | SolveError::Pinched { iterations }) => {
+                        spent.iterations += iterations
+                    }
+                    Err(_) => {}
+                }
                 near.extend(more);
                 state.last = x.clone();
                 packed.state.x = contact::target_with_free(&target, x, fixed);
@@ -148,10 +157,11 @@ pub(super) fn solve(
     state.report.release_attempts = attempts;
     state.report.kernel_gap = released.iter().map(|k| k.value(&packed.state.x).length()).fold(0.0, f64::max);
     packed.constraints = all;
-    result.map(|mut o| {
-        o.factorizations = factorizations as u32;
-        o.contact = contact::report(packed);
-        o
+    result.map(|o| {
+        spent.absorb(o);
+        spent.factorizations = factorizations as u32;
+        spent.contact = contact::report(packed);
+        spent
     })
 }
 
