@@ -18,7 +18,8 @@ pub(super) struct With<'a> {
 
 /// The kernels' median radius over the fold distance. Measured on the finger bent through itself
 /// (`scenes/character/finger_fold_quick.ron`, radius 3.56 mm): at 0.09 mm frame 4 failed
-/// (pinched); at 0.28 mm frames 6-8 did not converge; at 1.19 mm (a third) all 8 converge.
+/// (pinched); at 0.28 mm frames 6-8 did not converge; at 1.19 mm (a third) all 8 converged
+/// (before the ring growth of `solve::release`: `src/solve/README.md`).
 const RELEASE_FRACTION: f64 = 3.0;
 
 pub(super) fn rebuild(
@@ -73,8 +74,8 @@ pub(super) fn rebuild(
         .collect();
     let rest: Vec<_> = index.vertices.iter().map(|&v| items.rest.get(v).expect("vertex").0).collect();
     // The kinematic layers kernels bind skin to (`solve::release`): where such a body comes
-    // within a kernel's radius (the median of those binding to it) of another part of itself,
-    // its kernels are released.
+    // within a third of a kernel's radius (the median of those binding to it) of another part of
+    // itself, its kernels are released.
     let is_body = |l: u32| !surfaces[l as usize].moving && surfaces[l as usize].half_thickness == 0.0;
     let mut radii: Vec<f64> = kernels
         .map_or(&[][..], |k| k.entities())
