@@ -72,8 +72,9 @@ pub struct ContactState {
     /// Which kernels the last frame released (`solve::release`).
     pub released: Vec<bool>,
     /// The kinematic layers that kernels bind skin to, as one surface whose pairs are the
-    /// body's parts closer than `fold` to each other (`Surface::close_vertices`; neighbours
-    /// within twice that at rest are not pairs): where the body folds onto or through itself.
+    /// body's parts closer than `fold` to each other and facing (`Surface::close_vertices`;
+    /// neighbours within twice that at rest are not pairs): where the body folds onto or
+    /// through itself.
     pub body: Surface,
     pub fold: f64,
 }

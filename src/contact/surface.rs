@@ -9,6 +9,10 @@ use super::barrier::{mollifier_threshold, Barrier};
 use super::distance::{squared_distance, Primitives};
 use super::pair::Pair;
 
+/// The least cosine between a close pair's separation and its triangle's normal for the two
+/// parts to face each other (`Surface::close_vertices`): 45 degrees.
+const FACING: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
 /// One layer's part of a surface.
 #[derive(Clone, Debug, Default)]
 pub struct SurfaceLayer {
@@ -184,12 +188,26 @@ impl Surface {
         self.rest.clone()
     }
 
-    /// The vertices of admitted pairs closer than `distance` at `x`, and of triangles that
+    /// The vertices of admitted point-triangle pairs closer than `distance` at `x` whose point
+    /// lies over or under its triangle (the two parts face each other), and of triangles that
     /// cross each other there (`mesh::crossing`).
+    ///
+    /// Why facing: a surface compressed along itself (the inside of a bent elbow under linear
+    /// blend skinning) brings vertices that were far apart to within `distance` beside each
+    /// other, with no fold. Counted, they released 104 of the elbow's 180 kernels at frame 3,
+    /// whose skin then stayed within 12 um of its body points while the free skin crawled
+    /// (600 iterations, unconverged).
     pub fn close_vertices(&self, x: &[DVec3], distance: f64) -> BTreeSet<u32> {
+        let facing = |p: &Pair| {
+            let [q, a, b, c] = p.v.map(|i| x[i as usize]);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            let d2 = p.squared_distance(&super::gather(x, &p.v));
+            let over = n.dot(q - a);
+            d2 < distance * distance && over * over >= FACING * FACING * d2
+        };
         let mut out: BTreeSet<u32> = super::broad::candidates(self, x, None, distance)
             .into_iter()
-            .filter(|p| p.squared_distance(&super::gather(x, &p.v)) < distance * distance)
+            .filter(|p| p.kind == Primitives::PointTriangle && facing(p))
             .flat_map(|p| p.v)
             .collect();
         for (a, b) in crate::mesh::crossing::crossing_pairs(&self.triangles, x) {

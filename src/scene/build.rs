@@ -142,7 +142,8 @@ impl Builder {
         }
         for (pi, p) in scene.patches.iter().enumerate() {
             if let Some(c) = &p.contact {
-                patches[pi].contact_with = self.contact_with(pi, &c.with, &scene, &bodies, &patches)?;
+                patches[pi].contact_with = self.contact_with(pi, &c.with, &scene, &patches)?;
+                self.start_clearance(pi, &bodies, &mut patches)?;
             }
         }
         let (notes, memory) = (self.notes.take(), self.memory.get());

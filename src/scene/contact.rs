@@ -8,6 +8,7 @@ use super::schema::{ContactSpec, PatchSpec, Scene};
 use crate::contact::{Surface, SurfaceLayer};
 use crate::model::{Contact, LayerKind};
 use crate::solve::SolveMode;
+use glam::DVec3;
 
 impl Builder {
     /// `layers`: the patch's own layers (its body's excluded); `len`: metres per length unit.
@@ -84,7 +85,6 @@ impl Builder {
         pi: usize,
         names: &[String],
         scene: &Scene,
-        bodies: &[BuiltPatch],
         patches: &[BuiltPatch],
     ) -> Result<Vec<ContactWith>, SceneError> {
         let at = |i: usize| format!("patches[{pi}] (\"{}\").contact.with[{i}]", scene.patches[pi].name);
@@ -121,21 +121,38 @@ impl Builder {
             }
             out.push(with);
         }
-        self.start_clearance(pi, &out, bodies, patches)?;
         Ok(out)
     }
 
-    /// Refuses a start state with a pair of the contact surfaces (the patch's own, and what
-    /// `with` names) closer than the barrier's offset: its barrier would be infinite.
-    fn start_clearance(
+    /// A start state with a pair of the contact surfaces (the patch's own, and what `with`
+    /// names) closer than the barrier's offset, whose barrier would be infinite: the patch's own
+    /// shells are pushed out of it, with a note, where that is a small move that crosses
+    /// nothing; otherwise it is refused, naming the two layers.
+    pub(super) fn start_clearance(
         &self,
         pi: usize,
-        with: &[ContactWith],
+        bodies: &[BuiltPatch],
+        patches: &mut [BuiltPatch],
+    ) -> Result<(), SceneError> {
+        let moved = self.pushed_out(pi, bodies, patches)?;
+        for (layer, rest) in moved {
+            if let LayerMesh::Surface(m) = &mut patches[pi].layers[layer].mesh {
+                m.rest = rest;
+            }
+        }
+        Ok(())
+    }
+
+    /// The new rest positions of the patch's own shell layers that `start_clearance` moves.
+    fn pushed_out(
+        &self,
+        pi: usize,
         bodies: &[BuiltPatch],
         patches: &[BuiltPatch],
-    ) -> Result<(), SceneError> {
+    ) -> Result<Vec<(usize, Vec<DVec3>)>, SceneError> {
         let p = &patches[pi];
-        let Some(c) = p.contact else { return Ok(()) };
+        let with = &p.contact_with;
+        let Some(c) = p.contact else { return Ok(Vec::new()) };
         // (layer, its patch's name, its index among this patch's layers: Some where this patch
         // moves it)
         let first = usize::from(p.body.is_some());
@@ -183,13 +200,35 @@ impl Builder {
             .filter_map(|k| Some((at_layer(k.upper)?, at_layer(k.lower)?)))
             .collect();
         let surface = Surface::new(&layers, x.clone(), c.reach, &bound);
+        let moving: Vec<bool> =
+            (0..x.len() as u32).map(|v| ends.iter().position(|&e| v < e).is_some_and(|l| layers[l].moving)).collect();
         let pairs = crate::contact::broad::candidates(&surface, &x, None, surface.max_offset());
-        let inside = pairs
-            .iter()
-            .map(|q| (q.squared_distance(&crate::contact::gather(&x, &q.v)).sqrt(), q))
-            .filter(|(d, q)| *d <= q.barrier.offset)
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((d, q)) = inside else { return Ok(()) };
+        let closest = |x: &[DVec3]| {
+            pairs
+                .iter()
+                .map(|q| (q.squared_distance(&crate::contact::gather(x, &q.v)).sqrt(), q))
+                .filter(|(d, q)| *d <= q.barrier.offset)
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+        };
+        let Some((d, q)) = closest(&x) else { return Ok(Vec::new()) };
+        if let Some((pushed, most)) = push_out(&pairs, &x, &moving, &layers, c.thickness) {
+            let mut out = Vec::new();
+            for (l, &i) in kept.iter().enumerate() {
+                let start = if l == 0 { 0 } else { ends[l - 1] } as usize;
+                let range = start..ends[l] as usize;
+                if let (Some(k), true) = (parts[i].2, layers[l].moving) {
+                    if pushed[range.clone()] != x[range.clone()] {
+                        out.push((k, pushed[range].to_vec()));
+                    }
+                }
+            }
+            self.note(format!(
+                "warning: patches[{pi}] (\"{}\").contact: the start state was closer than the contact thickness \
+                 ({d:.3e} m where the barrier keeps {:.3e} m): its shells were pushed out by up to {most:.3e} m",
+                p.name, q.barrier.offset
+            ));
+            return Ok(out);
+        }
         let owner = |v: u32| {
             let l = ends.iter().position(|&e| v < e).unwrap_or(0);
             let (layer, patch, _) = parts[kept[l]];
@@ -204,4 +243,60 @@ impl Builder {
         );
         Err(self.err(format!("patches[{pi}] (\"{}\").contact", p.name), message))
     }
+}
+
+/// Rounds of `push_out`, the margin it leaves over each pair's offset, and the least distance
+/// over the offset it pushes out from: a start deeper inside is refused (a thickness far above
+/// the layers' spacing would otherwise move every vertex, 50 rounds over every pair).
+const PUSH_ROUNDS: usize = 50;
+const PUSH_MARGIN: f64 = 1e-3;
+const PUSH_LEAST: f64 = 0.25;
+
+/// The start state with every pair closer than its offset pushed apart by moving its `moving`
+/// vertices along the pair's separation (Gauss-Seidel over the pairs, linearized: a vertex
+/// moves in proportion to its closest-point weight), and the largest move; None when a pair
+/// lies deeper than `PUSH_LEAST` of its offset, has no moving vertex, a move exceeds `limit`,
+/// the rounds run out, or the result crosses.
+fn push_out(
+    pairs: &[crate::contact::Pair],
+    x: &[DVec3],
+    moving: &[bool],
+    layers: &[SurfaceLayer],
+    limit: f64,
+) -> Option<(Vec<DVec3>, f64)> {
+    use crate::contact::distance::closest_weights;
+    let mut y = x.to_vec();
+    let mut clear = false;
+    for _ in 0..PUSH_ROUNDS {
+        clear = true;
+        for q in pairs {
+            let at = crate::contact::gather(&y, &q.v);
+            let d = q.squared_distance(&at).sqrt();
+            let goal = q.barrier.offset * (1.0 + PUSH_MARGIN);
+            if d > q.barrier.offset {
+                continue;
+            }
+            clear = false;
+            if d < PUSH_LEAST * q.barrier.offset {
+                return None;
+            }
+            let w = closest_weights(q.kind, &at);
+            let sep: DVec3 = q.v.iter().zip(&w).map(|(&v, &wi)| wi * y[v as usize]).sum();
+            let free = |i: usize| moving[q.v[i] as usize];
+            let norm: f64 = (0..4).filter(|&i| free(i)).map(|i| w[i] * w[i]).sum();
+            if norm <= 0.0 {
+                return None;
+            }
+            let s = (goal - d) / norm;
+            for i in (0..4).filter(|&i| free(i)) {
+                y[q.v[i] as usize] += s * w[i] * sep / d;
+            }
+        }
+        if clear {
+            break;
+        }
+    }
+    let most = y.iter().zip(x).map(|(a, b)| (*a - *b).length()).fold(0.0, f64::max);
+    let tris: Vec<[u32; 3]> = layers.iter().flat_map(|l| l.triangles.iter().copied()).collect();
+    (clear && most <= limit && crate::mesh::crossing::crossing_pairs(&tris, &y).is_empty()).then_some((y, most))
 }

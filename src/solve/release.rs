@@ -12,7 +12,8 @@
 //! So a kernel whose skin touches is left out of the frame's rows. Its skin is held there by
 //! its own elasticity, by its neighbours' kernels and by contact. Which kernels:
 //! - at a frame's start, those whose skin stencil holds a vertex of a pair active where the last
-//!   frame ended;
+//!   frame ended, and those whose body stencil holds a vertex where the body's parts face each
+//!   other within the fold distance, or cross (`Surface::close_vertices`);
 //! - when the solve stalls (pinched: `SolveError::Pinched`; no descent; blocked), those with
 //!   skin in the stalled state's active pairs as well, and the solve goes on from there.
 //!
