@@ -332,6 +332,11 @@ fn bad_contact_input_is_refused_naming_the_field() {
     mentions(&e, &["patches[0] (\"p\").contact.thickness", "positive"]);
     let e = refused(&CONTACT.replace("d_hat: 0.05", "d_hat: -1.0"));
     mentions(&e, &["patches[0] (\"p\").contact.d_hat", "positive"]);
+    // (beyond the patch's 4.5 mm extent: every pair would touch)
+    let e = refused(&CONTACT.replace("d_hat: 0.05", "d_hat: 1e300"));
+    mentions(&e, &["patches[0] (\"p\").contact.d_hat", "extent"]);
+    let e = refused(&CONTACT.replace("thickness: 0.1, d_hat", "thickness: 5.0, d_hat"));
+    mentions(&e, &["patches[0] (\"p\").contact.thickness", "extent"]);
     let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, friction: -0.5)"));
     mentions(&e, &["patches[0] (\"p\").contact.friction", "coefficient"]);
     let e = refused(&CONTACT.replace("d_hat: 0.05)", "d_hat: 0.05, friction: 0.5, sticking: 0.0)"));

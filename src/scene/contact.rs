@@ -36,6 +36,24 @@ impl Builder {
             let message = format!("must be a friction coefficient (0 or more), not {}", c.friction);
             return Err(self.err(format!("{at}.friction"), message));
         }
+        // (a thickness or reach beyond the patch's extent makes every pair of its surfaces
+        // active: a d_hat of 1e300 held one frame of the pressed sheet for 430 s)
+        let (lo, hi) = layers
+            .iter()
+            .filter(|l| matches!(l.kind, LayerKind::Shell | LayerKind::Kinematic))
+            .flat_map(|l| l.mesh.rest())
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+        let extent = (hi - lo).length();
+        for (field, v) in [("thickness", thickness), ("d_hat", reach)] {
+            if extent.is_finite() && v > extent {
+                let message = format!(
+                    "{:.3e} m is more than the patch's extent ({extent:.3e} m): every pair of its surfaces would \
+                     touch",
+                    v
+                );
+                return Err(self.err(format!("{at}.{field}"), message));
+            }
+        }
         let sticking = match c.sticking {
             Some(s) => positive("sticking", s)?,
             None => 0.01 * thickness,
