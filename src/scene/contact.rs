@@ -221,14 +221,12 @@ impl Builder {
         let moving: Vec<bool> =
             (0..x.len() as u32).map(|v| ends.iter().position(|&e| v < e).is_some_and(|l| layers[l].moving)).collect();
         let pairs = crate::contact::broad::candidates(&surface, &x, None, surface.max_offset());
-        let closest = |x: &[DVec3]| {
-            pairs
-                .iter()
-                .map(|q| (q.squared_distance(&crate::contact::gather(x, &q.v)).sqrt(), q))
-                .filter(|(d, q)| *d <= q.barrier.offset)
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-        };
-        let Some((d, q)) = closest(&x) else { return Ok(Vec::new()) };
+        let inside = pairs
+            .iter()
+            .map(|q| (q.squared_distance(&crate::contact::gather(&x, &q.v)).sqrt(), q))
+            .filter(|(d, q)| *d <= q.barrier.offset)
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        let Some((d, q)) = inside else { return Ok(Vec::new()) };
         if let Some((pushed, most)) = push_out(&pairs, &x, &moving, &layers, c.thickness) {
             let mut out = Vec::new();
             for (l, &i) in kept.iter().enumerate() {
