@@ -60,28 +60,43 @@ fn edges_of(faces: &[[u32; 3]]) -> Vec<[u32; 2]> {
 }
 
 /// The smallest distance between a vertex and a triangle, or two edges, of one surface that
-/// are not neighbours at rest (their rest distance is above `apart`): all pairs, no culling.
+/// are not neighbours at rest (their rest distance is above `apart`): all pairs, culled only by
+/// their bounding boxes' distance, up to CAP.
 fn closest_approach(x: &[DVec3], rest: &[DVec3], faces: &[[u32; 3]], apart: f64) -> f64 {
     let edges = edges_of(faces);
     let at = |y: &[DVec3], f: &[u32; 3]| f.map(|v| y[v as usize]);
     let seg = |y: &[DVec3], e: &[u32; 2]| e.map(|v| y[v as usize]);
-    let mut best = f64::INFINITY;
-    for (v, p) in x.iter().enumerate() {
-        for f in faces.iter().filter(|f| !f.contains(&(v as u32))) {
-            if point_triangle(rest[v], at(rest, f)).sqrt() > apart {
-                best = best.min(point_triangle(*p, at(x, f)).sqrt());
-            }
-        }
-    }
-    for (i, a) in edges.iter().enumerate() {
-        for b in edges[i + 1..].iter().filter(|b| !b.iter().any(|v| a.contains(v))) {
-            if segment_segment(seg(rest, a), seg(rest, b)).sqrt() > apart {
-                best = best.min(segment_segment(seg(x, a), seg(x, b)).sqrt());
-            }
-        }
-    }
-    best
+    use rayon::prelude::*;
+    // (pairs whose bounding boxes lie over CAP apart are not measured: a box's distance is at
+    // most its contents')
+    let boxes = |ps: &[DVec3]| {
+        (ps.iter().fold(DVec3::INFINITY, |a, b| a.min(*b)), ps.iter().fold(DVec3::NEG_INFINITY, |a, b| a.max(*b)))
+    };
+    let close = |a: (DVec3, DVec3), b: (DVec3, DVec3)| (a.0 - b.1).max(b.0 - a.1).max(DVec3::ZERO).length() <= CAP;
+    let face_box: Vec<_> = faces.iter().map(|f| boxes(&at(x, f))).collect();
+    let edge_box: Vec<_> = edges.iter().map(|e| boxes(&seg(x, e))).collect();
+    let points = x.par_iter().enumerate().map(|(v, p)| {
+        let far = |(f, b): &(&[u32; 3], &(DVec3, DVec3))| {
+            !f.contains(&(v as u32)) && close((*p, *p), **b) && point_triangle(rest[v], at(rest, f)).sqrt() > apart
+        };
+        let measured = faces.iter().zip(&face_box).filter(far);
+        measured.map(|(f, _)| point_triangle(*p, at(x, f)).sqrt()).fold(CAP, f64::min)
+    });
+    let segments = edges.par_iter().enumerate().map(|(i, a)| {
+        let far = |(b, bb): &(&[u32; 2], &(DVec3, DVec3))| {
+            !b.iter().any(|v| a.contains(v))
+                && close(edge_box[i], **bb)
+                && segment_segment(seg(rest, a), seg(rest, b)).sqrt() > apart
+        };
+        let measured = edges[i + 1..].iter().zip(&edge_box[i + 1..]).filter(far);
+        measured.map(|(b, _)| segment_segment(seg(x, a), seg(x, b)).sqrt()).fold(CAP, f64::min)
+    });
+    points.chain(segments).reduce(|| CAP, f64::min)
 }
+
+/// The distance beyond which `closest_approach` does not measure (it returns CAP): above every
+/// thickness the tests assert (m).
+const CAP: f64 = 5e-3;
 
 /// The smallest distance between two surfaces: vertices against triangles both ways, and
 /// edges against edges.
@@ -475,4 +490,51 @@ fn lk14_skin_over_a_joint_that_folds_through_itself_never_crosses() {
     assert!(released > 0, "no kernel was released");
     let without = variant(rel, &[("contact: Some((thickness: 0.0375)),", "")]);
     assert!(frames_crossing(&without, "finger", "skin") > 0, "without contact the skin passes through itself");
+}
+
+/// The LK14 pinch squeezed until its folds lie over each other
+/// (`scenes/lk14/pinch_folded_quick.ron`: the base drawn in between two fingers by 1.6 times
+/// the distance, so that its middle folds over its sides). With contact every frame converges;
+/// the dermis and epidermis cross neither themselves nor each other nor (the epidermis) the
+/// base, and no two skin surfaces come closer than the 0.1 mm thickness; kernels are released
+/// where the base folds. Without contact the skin crosses itself or its other layer.
+#[test]
+fn a_pinch_folded_over_itself_never_passes_through() {
+    let rel = "lk14/pinch_folded_quick.ron";
+    let scene = load(rel);
+    let skins = |sim: &mut Simulation| ["dermis", "epidermis"].map(|l| sim.layer_surface("skin", l));
+    let crossing = |sim: &mut Simulation| {
+        let [(_, xd, fd), (_, xe, fe)] = skins(sim);
+        let (x, f) = merged(&[(xd, fd), (xe, fe)]);
+        crossing_pairs(&f, &x).len()
+    };
+    let rest = {
+        let [(_, xd, fd), (_, xe, fe)] = skins(&mut Simulation::new(&scene));
+        merged(&[(xd, fd), (xe, fe)]).0
+    };
+    let mut released = 0;
+    let mut sim = Simulation::new(&scene);
+    for frame in 1..=scene.scene.frames {
+        let s = sim.step();
+        assert!(sim.failure().is_none(), "frame {frame}: {:?}", sim.failure());
+        assert!(s.patches[0].outcome.converged, "frame {frame}: {} iterations", s.patches[0].outcome.iterations);
+        released = released.max(s.patches[0].outcome.contact.expect("a contact report").released_kernels);
+        assert_eq!(crossing(&mut sim), 0, "frame {frame}: the skin crosses");
+        let [(_, xd, fd), (_, xe, fe)] = skins(&mut sim);
+        let (x, faces) = merged(&[(xd, fd), (xe.clone(), fe.clone())]);
+        // (neighbours on one layer within 0.3 mm at rest, twice the barrier's reach, never pair)
+        let closest = closest_approach(&x, &rest, &faces, 0.3e-3);
+        assert!(closest > 0.1e-3, "frame {frame}: the skin comes within {closest} m of itself");
+        let (_, xb, fb) = sim.layer_surface("skin", "base");
+        let (x, faces) = merged(&[(xe, fe), (xb, fb)]);
+        assert!(crossing_pairs(&faces, &x).is_empty(), "frame {frame}: the epidermis crosses the base");
+    }
+    assert!(released > 0, "no kernel was released");
+    let without = variant(rel, &[("contact: Some((thickness: 0.1, d_hat: 0.05)),", "")]);
+    let mut sim = Simulation::new(&without);
+    let first = (1..=without.scene.frames).find(|_| {
+        sim.step();
+        crossing(&mut sim) > 0
+    });
+    assert!(first.is_some(), "without contact the skin passes through itself");
 }

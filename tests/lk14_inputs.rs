@@ -71,6 +71,24 @@ fn the_template_is_valid_with_procedural_maps_and_targets() {
     }
 }
 
+/// A pinch between two fingers may squeeze past 1 (it folds the skin over itself), up to 4;
+/// from all sides it may not, and the fingers lie in the plane.
+#[test]
+fn a_pinch_between_fingers_is_checked() {
+    let with = |shape: &str| {
+        let pinch = format!("Target(shape: {shape}, weights: [(0, 0.0), (4, 1.0)])");
+        load_str(&scene("None", "Constant(4.0)", &format!("{TARGET}, {pinch}")), Path::new("lk14.ron"))
+    };
+    with("Pinch(radius: 4.0, squeeze: 1.6, lift: 1.0, between: Some(Y))").unwrap_or_else(|e| panic!("{e}"));
+    for (shape, words) in [
+        ("Pinch(radius: 4.0, squeeze: 1.6, lift: 1.0)", &["targets[1].shape.squeeze", "[0, 1)"][..]),
+        ("Pinch(radius: 4.0, squeeze: 4.0, lift: 1.0, between: Some(X))", &["targets[1].shape.squeeze", "[0, 4)"]),
+        ("Pinch(radius: 4.0, squeeze: 1.0, lift: 1.0, between: Some(Z))", &["targets[1].shape.between", "X or Y"]),
+    ] {
+        mentions(&with(shape).expect_err(shape), words);
+    }
+}
+
 #[test]
 fn a_missing_property_map_names_the_file() {
     let text = scene(r#"Some((map: Png("nowhere.png"), young: Some((1.0, 2.0))))"#, "Constant(4.0)", TARGET);

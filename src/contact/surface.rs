@@ -37,8 +37,8 @@ pub struct Surface {
     point_layer: Vec<u32>,
     /// Rest positions by packed vertex (the rule "near at rest is not contact").
     rest: Vec<DVec3>,
-    /// Layer pairs (a < b) bound to each other (LK14 kernels): they do not touch.
-    bound: Vec<(u32, u32)>,
+    /// Layer pairs (a < b) bound to each other (LK14 kernels), each once: they do not touch.
+    bound: BTreeSet<(u32, u32)>,
     /// Each layer's half thickness and whether it moves.
     half: Vec<f64>,
     moving: Vec<bool>,
@@ -53,7 +53,7 @@ pub struct Surface {
 impl Surface {
     /// From each layer's triangles (packed numbers) and the packed rest positions; `reach`:
     /// the barrier's d_hat; `bound`: pairs of layers (indices into `layers`) that kernels bind,
-    /// which do not touch.
+    /// which do not touch (one per kernel will do).
     pub fn new(layers: &[SurfaceLayer], rest: Vec<DVec3>, reach: f64, bound: &[(u32, u32)]) -> Surface {
         let half = layers.iter().map(|l| l.half_thickness).collect();
         let moving = layers.iter().map(|l| l.moving).collect();

@@ -384,7 +384,7 @@ fn the_surface_pairs_what_may_touch() {
     };
     let free = Surface::new(&[layer(0, true), layer(16, true)], rest.clone(), 0.1, &[]);
     assert!(across(&free) > 0, "unbound stacked layers pair");
-    let bound = Surface::new(&[layer(0, true), layer(16, true)], rest.clone(), 0.1, &[(1, 0)]);
+    let bound = Surface::new(&[layer(0, true), layer(16, true)], rest.clone(), 0.1, &[(1, 0), (0, 1)]);
     assert_eq!(across(&bound), 0, "bound layers do not");
     let bodies = Surface::new(&[layer(0, false), layer(16, false)], rest.clone(), 0.1, &[]);
     assert!(broad::candidates(&bodies, &rest, None, 1.0).is_empty(), "two bodies do not");

@@ -216,6 +216,8 @@ impl Builder {
             .iter()
             .filter(|k| k.upper >= first && k.lower >= first)
             .filter_map(|k| Some((at_layer(k.upper)?, at_layer(k.lower)?)))
+            // (two skins bound to each other touch: `systems::assemble::contact_surface`)
+            .filter(|&(a, b)| !(layers[a as usize].moving && layers[b as usize].moving))
             .collect();
         let surface = Surface::new(&layers, x.clone(), c.reach, &bound);
         let moving: Vec<bool> =

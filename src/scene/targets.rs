@@ -5,7 +5,7 @@ use glam::{DVec2, DVec3};
 
 use super::built::{BuiltTarget, LayerMesh};
 use super::context::Builder;
-use super::schema::{BlendTargetSpec, TargetShape};
+use super::schema::{Axis, BlendTargetSpec, TargetShape};
 use super::SceneError;
 use crate::mesh;
 
@@ -71,13 +71,20 @@ impl Builder {
                     };
                     twist(rest, centre, angle.to_radians(), r)
                 }
-                TargetShape::Pinch { radius, squeeze, lift } => {
-                    if !(*squeeze >= 0.0 && *squeeze < 1.0) {
-                        return Err(
-                            self.err(format!("{tat}.shape.squeeze"), format!("must be in [0, 1) (got {squeeze})"))
-                        );
+                TargetShape::Pinch { radius, squeeze, lift, between } => {
+                    // (drawn in from all sides, a squeeze of 1 or more collapses circles to a
+                    // point; between two fingers it folds the skin over itself, up to 4: the
+                    // folded middle lies within the radius)
+                    if *between == Some(Axis::Z) {
+                        return Err(self.err(format!("{tat}.shape.between"), "must be X or Y (fingers in the plane)"));
                     }
-                    pinch(rest, centre, positive("radius", *radius)? * len, *squeeze, lift * len)
+                    let most = if between.is_some() { 4.0 } else { 1.0 };
+                    if !(*squeeze >= 0.0 && *squeeze < most) {
+                        let message = format!("must be in [0, {most}) (got {squeeze})");
+                        return Err(self.err(format!("{tat}.shape.squeeze"), message));
+                    }
+                    let radius = positive("radius", *radius)? * len;
+                    pinch(rest, centre, radius, *squeeze, lift * len, between.map(Axis::index))
                 }
                 TargetShape::Obj(path) => {
                     let full = self.dir.join(path);
@@ -135,12 +142,22 @@ pub fn twist(rest: &[DVec3], centre: DVec3, angle: f64, radius: f64) -> Vec<DVec
 }
 
 /// Draws points within `radius` towards `centre` by `squeeze` x their distance x falloff and
-/// lifts them by `lift` x falloff along z.
-pub fn pinch(rest: &[DVec3], centre: DVec3, radius: f64, squeeze: f64, lift: f64) -> Vec<DVec3> {
+/// lifts them by `lift` x falloff along z. `between`: draws in along that axis only.
+pub fn pinch(
+    rest: &[DVec3],
+    centre: DVec3,
+    radius: f64,
+    squeeze: f64,
+    lift: f64,
+    between: Option<usize>,
+) -> Vec<DVec3> {
     rest.iter()
         .map(|p| {
-            let q = (*p - centre).truncate();
+            let mut q = (*p - centre).truncate();
             let f = falloff(q.length(), radius);
+            if let Some(axis) = between {
+                q[1 - axis] = 0.0;
+            }
             (-squeeze * f * q).extend(lift * f)
         })
         .collect()
@@ -179,10 +196,24 @@ mod tests {
     #[test]
     fn pinch_lifts_and_draws_in() {
         let c = DVec3::new(5.0, 5.0, 0.0);
-        let d = pinch(&grid(), c, 4.0, 0.5, 2.0);
+        let d = pinch(&grid(), c, 4.0, 0.5, 2.0, None);
         assert_eq!(d[60], DVec3::new(0.0, 0.0, 2.0));
         let near = d[61]; // (5, 6): 1 from the centre
         assert!(near.y < 0.0 && near.z > 0.0 && near.z < 2.0);
         assert_eq!(d[0], DVec3::ZERO);
+    }
+
+    /// Between fingers along x, squeezed past 1: y stays; along the centre row the middle
+    /// crosses over to the other side (x is no longer monotone: the skin folds over itself)
+    /// while the lift, falling with the distance, keeps the folded parts at different heights.
+    #[test]
+    fn pinch_between_fingers_folds_the_middle_over() {
+        let c = DVec3::new(5.0, 5.0, 0.0);
+        let rest = grid();
+        let d = pinch(&rest, c, 4.0, 1.6, 2.0, Some(0));
+        assert!(d.iter().all(|d| d.y == 0.0));
+        let row: Vec<DVec3> = (0..11).map(|i| rest[i * 11 + 5] + d[i * 11 + 5]).collect();
+        assert!(row[6].x < c.x && row[4].x > c.x, "the middle crosses over: {row:?}");
+        assert!(row[6].z > row[7].z && row[7].z > row[8].z, "the lift falls outwards");
     }
 }

@@ -18,7 +18,9 @@
 //!   skin in the stalled state's active pairs as well, and the solve goes on from there.
 //!
 //! Every other kernel holds exactly. A released kernel is held again in the first frame that
-//! starts with its skin out of contact.
+//! starts with its skin out of contact. Kernels binding skin to skin (an epidermis on its
+//! dermis) are never released: they pass their skin's touching down to the skin below, and the
+//! two skins touch each other (`systems::assemble::contact_surface`).
 
 use std::collections::BTreeSet;
 
@@ -55,15 +57,32 @@ pub(super) fn touching(state: &ContactState, from: &[DVec3], to: &[DVec3], fixed
     hit.into_iter().flatten().collect()
 }
 
-/// Whether each kernel's skin stencil holds a vertex of `touching`, or its body stencil one of
-/// `folded`.
+/// Whether each kernel binding skin to a body has a skin stencil that holds a vertex of
+/// `touching`, or a body stencil that holds one of `folded`.
+///
+/// A kernel binding skin to skin (its lower side moves: LK14's epidermis on its dermis) is never
+/// released, and what its skin touches counts as touching its lower skin too. Released, it let
+/// the dermis pass through its own epidermis (a pinch folded over itself, frame 4: 120 crossing
+/// faces), since layers bound to each other do not touch where they lay together at rest.
 pub(super) fn released(kernels: &[KernelRows], touching: &BTreeSet<u32>, folded: &BTreeSet<u32>) -> Vec<bool> {
+    let holds = |k: &KernelRows, set: &BTreeSet<u32>| k.upper.iter().any(|(v, w)| *w > 0.0 && set.contains(v));
+    let mut touching = touching.clone();
+    // (down a stack of skins, one layer per round)
+    loop {
+        let below: Vec<u32> = kernels
+            .iter()
+            .filter(|k| k.lower_moves && holds(k, &touching))
+            .flat_map(|k| k.lower.iter().filter(|t| t.w > 0.0).map(|t| t.v))
+            .filter(|v| !touching.contains(v))
+            .collect();
+        if below.is_empty() {
+            break;
+        }
+        touching.extend(below);
+    }
     kernels
         .iter()
-        .map(|k| {
-            k.upper.iter().any(|(v, w)| *w > 0.0 && touching.contains(v))
-                || k.lower.iter().any(|t| t.w > 0.0 && folded.contains(&t.v))
-        })
+        .map(|k| !k.lower_moves && (holds(k, &touching) || k.lower.iter().any(|t| t.w > 0.0 && folded.contains(&t.v))))
         .collect()
 }
 
@@ -189,5 +208,17 @@ mod tests {
         assert_eq!(grown(&k, vec![true, false, false], 1), [true, true, false]);
         assert_eq!(grown(&k, vec![true, false, false], 3), [true, true, false]);
         assert_eq!(grown(&k, vec![true, false, false], 0), [true, false, false]);
+    }
+
+    /// An epidermis (20, 21) on skin vertex 3 by a kernel whose lower side moves: never
+    /// released, and its touching releases the kernel of the skin below it on the body.
+    #[test]
+    fn skin_on_skin_kernels_hold_and_pass_touching_down() {
+        let set = |v: &[u32]| v.iter().copied().collect::<BTreeSet<u32>>();
+        let mut k = kernels();
+        let lower = vec![LowerTerm { v: 3, w: 1.0, offset: 0.0, ring: Vec::new() }];
+        k.push(KernelRows { upper: vec![(20, 0.5), (21, 0.5)], lower, lower_moves: true });
+        assert_eq!(released(&k, &set(&[21]), &set(&[])), [false, false, true, false]);
+        assert_eq!(released(&k, &set(&[3]), &set(&[])), [false, false, true, false]);
     }
 }

@@ -64,13 +64,17 @@ pub(super) fn rebuild(
             )
         })
         .unzip();
-    // Layers a kernel binds do not touch (LK14: the skin oscillates about what it is bound to).
+    // A skin a kernel binds to a body does not touch it (LK14: the skin oscillates about its
+    // body, up to 1.3 mm below the knuckle's). Two skins bound to each other do touch: tissue
+    // layers never pass through each other, and on a pinch folded over itself (kernels of 2 mm,
+    // `scenes/lk14/pinch_folded_quick.ron`) the dermis otherwise crossed its epidermis at frame 3.
     let at = |e: Entity| entities.iter().position(|&l| l == e).map(|i| i as u32);
     let bound: Vec<(u32, u32)> = kernels
         .map_or(&[][..], |k| k.entities())
         .iter()
         .filter_map(|&k| items.kernels.get(k).ok())
         .filter_map(|(k, _)| Some((at(k.upper)?, at(k.lower)?)))
+        .filter(|&(a, b)| !(surfaces[a as usize].moving && surfaces[b as usize].moving))
         .collect();
     let rest: Vec<_> = index.vertices.iter().map(|&v| items.rest.get(v).expect("vertex").0).collect();
     // The kinematic layers kernels bind skin to (`solve::release`): where such a body comes

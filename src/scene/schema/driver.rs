@@ -249,8 +249,15 @@ pub enum TargetShape {
     },
     /// Draws the skin within `radius` towards the centre (by `squeeze` times the distance at
     /// the centre, smoothly less outwards) and lifts it by `lift` (length units): a pinch while
-    /// pulling up.
-    Pinch { radius: f64, squeeze: f64, lift: f64 },
+    /// pulling up. With `between: Some(X)` the skin is drawn in along that axis only, as between
+    /// two fingers, and a squeeze above 1 folds it over itself (the middle lies over its sides).
+    Pinch {
+        radius: f64,
+        squeeze: f64,
+        lift: f64,
+        #[serde(default)]
+        between: Option<Axis>,
+    },
     /// A target mesh (path relative to the scene, length units): the same vertices in the same
     /// order as the layer's mesh.
     Obj(String),
