@@ -8,6 +8,7 @@ use parry3d_f64::math::Vector;
 use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy};
 use rayon::prelude::*;
 
+use super::distance::Primitives;
 use super::pair::Pair;
 use super::surface::Surface;
 
@@ -78,4 +79,18 @@ pub fn candidates(s: &Surface, x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Vec
         found.into_iter().filter_map(move |j| s.edge_edge(i, j as usize))
     }));
     pairs
+}
+
+/// The pairs of `pairs` (a wider list, in its order) that `candidates` would find at `x` or
+/// over the step to `x1` with reach `r`: the same boxes, the same test.
+pub fn filtered(pairs: &[Pair], x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Vec<Pair> {
+    use parry3d_f64::bounding_volume::BoundingVolume;
+    pairs
+        .par_iter()
+        .filter(|p| match p.kind {
+            Primitives::PointTriangle => aabb(&p.v[..1], x, x1, 0.0).intersects(&aabb(&p.v[1..], x, x1, r)),
+            Primitives::EdgeEdge => aabb(&p.v[..2], x, x1, 0.5 * r).intersects(&aabb(&p.v[2..], x, x1, 0.5 * r)),
+        })
+        .copied()
+        .collect()
 }

@@ -151,6 +151,14 @@ impl Surface {
         Barrier { offset: self.half[a as usize] + self.half[b as usize], reach: self.reach }
     }
 
+    /// The median length of the surface's edges at rest (m; 0 without edges).
+    pub fn median_edge(&self) -> f64 {
+        let mut lengths: Vec<f64> =
+            self.edges.iter().map(|e| (self.rest[e[0] as usize] - self.rest[e[1] as usize]).length()).collect();
+        lengths.sort_by(f64::total_cmp);
+        lengths.get(lengths.len() / 2).copied().unwrap_or(0.0)
+    }
+
     /// The largest pair offset (the broad phase's reach).
     pub fn max_offset(&self) -> f64 {
         let max = self.half.iter().fold(0.0f64, |m, &h| m.max(h));

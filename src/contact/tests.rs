@@ -396,6 +396,63 @@ fn the_surface_pairs_what_may_touch() {
     }
 }
 
+/// The wide list (`ContactState::pairs_near`): over random walks of two crumpled layers, some
+/// steps within its extra reach and some beyond, every broad phase finds the same pairs in the
+/// same order as building the trees, at a state and over a step.
+#[test]
+fn the_wide_list_finds_what_the_trees_find() {
+    use glam::DVec3;
+    let n = 8u32;
+    let grid = |base: u32| -> Vec<[u32; 3]> {
+        (0..n - 1)
+            .flat_map(|i| (0..n - 1).map(move |j| (i, j)))
+            .flat_map(|(i, j)| {
+                let v = |a: u32, b: u32| base + a * n + b;
+                [[v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)]]
+            })
+            .collect()
+    };
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    let rest: Vec<DVec3> = (0..2 * n * n)
+        .map(|k| {
+            let (l, i, j) = (k / (n * n), (k % (n * n)) / n, k % n);
+            DVec3::new(i as f64 * 0.1, j as f64 * 0.1, 0.05 * l as f64)
+        })
+        .collect();
+    let layer = |base| SurfaceLayer { triangles: grid(base), half_thickness: 0.005, moving: true };
+    let surface = Surface::new(&[layer(0), layer(n * n)], rest.clone(), 0.01, &[]);
+    let mut state = ContactState::new(surface, 0.01);
+    let fixed = vec![[false; 3]; rest.len()];
+    let mut x = rest.clone();
+    let (mut reused, mut rebuilt) = (0, 0);
+    for step in 0..60 {
+        // (small steps reuse the wide list, every tenth is longer than its extra reach)
+        let size = if step % 10 == 9 { 0.5 } else { 0.004 };
+        let x1: Vec<DVec3> = x
+            .iter()
+            .map(|p| *p + DVec3::new(rng.random(), rng.random(), rng.random()) * size - DVec3::splat(0.5 * size))
+            .collect();
+        let before = state.wide_at.clone();
+        for end in [None, Some(&x1[..])] {
+            let wide = state.pairs_near(&x, end, &fixed);
+            let trees = state.free_pairs(&x, end, &fixed);
+            let key = |p: &Pair| (p.v, p.kind == Primitives::EdgeEdge);
+            assert_eq!(
+                wide.iter().map(key).collect::<Vec<_>>(),
+                trees.iter().map(key).collect::<Vec<_>>(),
+                "step {step}"
+            );
+        }
+        if state.wide_at == before {
+            reused += 1
+        } else {
+            rebuilt += 1
+        }
+        x = x1;
+    }
+    assert!(reused > 10 && rebuilt > 3, "reused {reused}, rebuilt {rebuilt}");
+}
+
 /// Lagged friction: the closest points' weights give the brute-force distance, the normal
 /// force is the barrier's force along the distance (a central difference of its energy), and
 /// the friction energy's gradient and Hessian match central differences, sticking (slip below
