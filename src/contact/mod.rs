@@ -149,7 +149,7 @@ impl ContactState {
         self.report.broad_phases += 1;
         self.listed_at = x.to_vec();
         let reach = self.list_reach();
-        let extra = (WIDE * reach).min(WIDE_EDGE * self.surface.median_edge());
+        let extra = (WIDE * reach).min(WIDE_EDGE * self.surface.median_edge);
         let within = |at: &[DVec3]| {
             let r2 = (0.5 * extra).powi(2);
             at.len() == self.wide_at.len() && at.iter().zip(&self.wide_at).all(|(a, c)| a.distance_squared(*c) <= r2)

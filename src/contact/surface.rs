@@ -44,6 +44,8 @@ pub struct Surface {
     moving: Vec<bool>,
     /// The barrier's reach d_hat beyond a pair's offset (m).
     pub reach: f64,
+    /// The median length of the edges at rest (m; 0 without edges).
+    pub median_edge: f64,
     /// Neighbours at rest (`neighbours`), found once: for each point the triangles, for each
     /// edge the later edges, ascending.
     point_near: Vec<Vec<u32>>,
@@ -74,6 +76,10 @@ impl Surface {
         }
         (s.edges, s.edge_layer) = edges.into_iter().unzip();
         (s.points, s.point_layer) = points.into_iter().unzip();
+        let mut lengths: Vec<f64> =
+            s.edges.iter().map(|e| (s.rest[e[0] as usize] - s.rest[e[1] as usize]).length()).collect();
+        lengths.sort_by(f64::total_cmp);
+        s.median_edge = lengths.get(lengths.len() / 2).copied().unwrap_or(0.0);
         s.find_neighbours();
         s
     }
@@ -149,14 +155,6 @@ impl Surface {
     /// The barrier between primitives of layers a and b: offset by both half thicknesses.
     pub fn barrier(&self, a: u32, b: u32) -> Barrier {
         Barrier { offset: self.half[a as usize] + self.half[b as usize], reach: self.reach }
-    }
-
-    /// The median length of the surface's edges at rest (m; 0 without edges).
-    pub fn median_edge(&self) -> f64 {
-        let mut lengths: Vec<f64> =
-            self.edges.iter().map(|e| (self.rest[e[0] as usize] - self.rest[e[1] as usize]).length()).collect();
-        lengths.sort_by(f64::total_cmp);
-        lengths.get(lengths.len() / 2).copied().unwrap_or(0.0)
     }
 
     /// The largest pair offset (the broad phase's reach).
