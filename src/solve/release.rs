@@ -61,9 +61,9 @@ pub(super) fn touching(state: &ContactState, from: &[DVec3], to: &[DVec3], fixed
 /// `touching`, or a body stencil that holds one of `folded`.
 ///
 /// A kernel binding skin to skin (its lower side moves: LK14's epidermis on its dermis) is never
-/// released, and what its skin touches counts as touching its lower skin too. Released, it let
-/// the dermis pass through its own epidermis (a pinch folded over itself, frame 4: 120 crossing
-/// faces), since layers bound to each other do not touch where they lay together at rest.
+/// released, and what its skin touches counts as touching its lower skin too. Released (while
+/// bound skins did not touch yet), it let the dermis pass through its own epidermis (a pinch
+/// folded over itself, frame 4: 120 crossing faces).
 pub(super) fn released(kernels: &[KernelRows], touching: &BTreeSet<u32>, folded: &BTreeSet<u32>) -> Vec<bool> {
     let holds = |k: &KernelRows, set: &BTreeSet<u32>| k.upper.iter().any(|(v, w)| *w > 0.0 && set.contains(v));
     let mut touching = touching.clone();
