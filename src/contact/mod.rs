@@ -87,6 +87,12 @@ pub struct ContactState {
     pub wide_at: Vec<DVec3>,
     /// Which kernels the last frame released (`solve::release`).
     pub released: Vec<bool>,
+    /// The pairs (and whether each was active) that the contact kind's scatter map holds, and
+    /// the pattern it was made in (`Pattern::stamp`; `solve::contact::fit`).
+    pub mapped: Vec<([u32; 4], bool)>,
+    pub mapped_for: u64,
+    /// The released kernels' spring stiffness (N/m; 0 until first needed: `solve::contact::stiffen`).
+    pub kernel_spring: f64,
     /// The kinematic layers that kernels bind skin to, as one surface whose pairs are the
     /// body's parts closer than `fold` to each other and facing (`Surface::close_vertices`;
     /// neighbours within twice that at rest are not pairs): where the body folds onto or

@@ -9,6 +9,7 @@
 //! leaves it needs a new pattern and symbolic analysis (both counted).
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::element::Term;
 use super::error::SolveError;
@@ -40,27 +41,57 @@ pub(super) fn fit(packed: &mut PackedPatch, pattern: &mut Pattern) -> bool {
     // (the frame's friction pairs all have derivatives)
     let (x, pairs) = (&packed.state.x, &packed.elements.contacts.pairs);
     let friction = &packed.elements.friction.pairs;
-    let active: Vec<bool> = pairs.iter().map(|p| p.barrier.active(p.squared_distance(&gather(x, &p.v)))).collect();
+    let active: Vec<bool> = pairs.par_iter().map(|p| p.barrier.active(p.squared_distance(&gather(x, &p.v)))).collect();
     let covered = pairs.iter().zip(&active).all(|(p, &a)| !a || pattern.covers_stencil(&p.v))
         && friction.iter().all(|p| pattern.covers_stencil(&p.v));
-    if covered {
-        let map = pairs
-            .iter()
-            .zip(&active)
-            .flat_map(|(p, &a)| if a { pattern.element_map(&p.v) } else { vec![NONE; super::scatter::pairs(4)] })
-            .collect();
-        pattern.maps[kind(packed, &packed.elements.contacts)] = map;
-        let map = friction.iter().flat_map(|p| pattern.element_map(&p.v)).collect();
-        pattern.maps[kind(packed, &packed.elements.friction)] = map;
-    }
+    let (contacts, friction_kind) = (kind(packed, &packed.elements.contacts), kind(packed, &packed.elements.friction));
     let state = packed.contact.as_mut().expect("a patch with contact");
     if covered {
+        let mut map = std::mem::take(&mut pattern.maps[contacts]);
+        let now: Vec<([u32; 4], bool)> = pairs.iter().zip(&active).map(|(p, &a)| (p.v, a)).collect();
+        let kept = state.mapped_for == pattern.stamp;
+        remap(&mut map, if kept { Some(&state.mapped[..]) } else { None }, &now, |v| pattern.element_map(v));
+        pattern.maps[contacts] = map;
+        state.mapped = now;
+        state.mapped_for = pattern.stamp;
+        let map = friction.iter().flat_map(|p| pattern.element_map(&p.v)).collect();
+        pattern.maps[friction_kind] = map;
         state.report.remaps += 1;
         return false;
     }
     state.report.reanalyses += 1;
     *pattern = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
     true
+}
+
+/// The contact kind's scatter map for the pairs `now` (each with whether it is active):
+/// `element_map`'s slots for an active pair, NONE for the others. `before`: the pairs `map`
+/// holds, when it was made in the same pattern: only the slots of pairs that changed are then
+/// written (the list holds thousands of pairs and a few change per step; remaking the whole
+/// map, 78 slots a pair, cost 16 % of a touching fist's run).
+fn remap(
+    map: &mut Vec<u32>,
+    before: Option<&[([u32; 4], bool)]>,
+    now: &[([u32; 4], bool)],
+    element_map: impl Fn(&[u32; 4]) -> Vec<u32>,
+) {
+    let stride = super::scatter::pairs(4);
+    let before = before.filter(|b| map.len() == b.len() * stride);
+    if before.is_none() {
+        map.clear();
+    }
+    map.resize(now.len() * stride, NONE);
+    for (i, (v, active)) in now.iter().enumerate() {
+        if before.and_then(|b| b.get(i)) == Some(&(*v, *active)) {
+            continue;
+        }
+        let slot = &mut map[i * stride..(i + 1) * stride];
+        if *active {
+            slot.copy_from_slice(&element_map(v));
+        } else {
+            slot.fill(NONE);
+        }
+    }
 }
 
 /// The symbolic analysis of a rebuilt pattern (its factorization count carried on).
@@ -90,6 +121,17 @@ pub(super) trait Loop {
 /// Returns whether the stiffness changed (the assembly is then stale).
 pub(super) fn stiffen(packed: &mut PackedPatch, pattern: &Pattern, grad: &[f64], values: &[f64]) -> bool {
     let Some(state) = packed.contact.as_mut() else { return false };
+    // Released kernels' springs: KERNEL_SPRING times the Hessian's mean diagonal at the patch's
+    // first assembly, before any barrier adds to it (a squeezed pair's curvature is 1e10 times
+    // the skin's), kept for the run.
+    if state.kernel_spring == 0.0 && state.stiffness == 0.0 {
+        state.kernel_spring = KERNEL_SPRING * mean_abs_diagonal(pattern, values);
+    }
+    let springs = &mut packed.elements.kernel_springs;
+    let sprung = !springs.is_empty() && springs.stiffness != state.kernel_spring;
+    if sprung {
+        springs.stiffness = state.kernel_spring;
+    }
     let x = &packed.state.x;
     let min_z = state.observe(&packed.elements.contacts.pairs, x);
     let first = state.stiffness == 0.0;
@@ -110,8 +152,14 @@ pub(super) fn stiffen(packed: &mut PackedPatch, pattern: &Pattern, grad: &[f64],
     }
     let changed = state.update_stiffness(min_z, mean_abs_diagonal(pattern, values), grad, &barrier);
     packed.elements.contacts.stiffness = state.stiffness;
-    changed
+    changed || sprung
 }
+
+/// The released kernels' spring stiffness over the Hessian's mean diagonal, per unit of a
+/// kernel's sum of squared weights (`elements/kernel_spring.rs`). Measured on the elbow with
+/// contact (scratch runs, `src/solve/README.md`): 1e-2 converged every frame, 1e-1 took 1416
+/// Newton iterations at frame 3 against 1013.
+pub(super) const KERNEL_SPRING: f64 = 1e-2;
 
 /// Before a line search along `dx` (free DOFs) from the state: lists the pairs near the step
 /// (unless the last list still covers it) and returns the largest fraction of it no pair
@@ -246,4 +294,40 @@ pub(super) fn report(packed: &PackedPatch) -> Option<ContactReport> {
     r.slip = friction.pairs.iter().map(|p| p.slip(&packed.state.x).norm()).fold(0.0, f64::max);
     r.energy = super::element::Term::energy(&packed.elements.contacts, &packed.state.x);
     Some(r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Over random changes of the list (pairs added, dropped, activated), the map made from
+    /// the last one equals the map made afresh.
+    #[test]
+    fn a_remapped_list_equals_a_fresh_map() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let element_map = |v: &[u32; 4]| {
+            (0..super::super::scatter::pairs(4) as u32).map(|k| v.iter().sum::<u32>() * 100 + k).collect()
+        };
+        let (mut map, mut before): (Vec<u32>, Vec<([u32; 4], bool)>) = (Vec::new(), Vec::new());
+        for step in 0..200 {
+            let mut now = before.clone();
+            match rng.random_range(0..4) {
+                0 => now.push(([rng.random_range(0..50), 1, 2, 3], rng.random())),
+                1 if !now.is_empty() => {
+                    now.remove(rng.random_range(0..now.len()));
+                }
+                _ if !now.is_empty() => {
+                    let i = rng.random_range(0..now.len());
+                    now[i].1 = !now[i].1;
+                }
+                _ => {}
+            }
+            remap(&mut map, Some(&before), &now, element_map);
+            let mut fresh = vec![7; 3];
+            remap(&mut fresh, None, &now, element_map);
+            assert_eq!(map, fresh, "step {step}");
+            before = now;
+        }
+    }
 }

@@ -22,7 +22,13 @@ pub struct Pattern {
     /// Elimination order of the free DOFs (nested dissection of the vertices): order[k] is
     /// the DOF eliminated k-th.
     pub order: Vec<u32>,
+    /// Which build this is (unique in the process): what the contact maps were made for
+    /// (`solve::contact::fit`).
+    pub stamp: u64,
 }
+
+/// The next `Pattern::stamp`.
+static STAMP: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl Pattern {
     /// `tie[v] = (m, dofs)`: coordinates `dofs` of v share vertex m's DOFs (m < v; m = v
@@ -128,7 +134,8 @@ impl Pattern {
                 }
             }
         }
-        let mut p = Pattern { dof, n: n as usize, col_ptr, row_idx, diag, maps: Vec::new(), order };
+        let stamp = STAMP.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let mut p = Pattern { dof, n: n as usize, col_ptr, row_idx, diag, maps: Vec::new(), order, stamp };
         p.maps = terms
             .iter()
             .map(|t| {

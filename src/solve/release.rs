@@ -9,8 +9,10 @@
 //! frame 2: 95 iterations, steps of 3e-5, penalty 8e10). Holding the kernels by stiff
 //! penalties instead crawled everywhere (`src/solve/README.md`).
 //!
-//! So a kernel whose skin touches is left out of the frame's rows. Its skin is held there by
-//! its own elasticity, by its neighbours' kernels and by contact. Which kernels:
+//! So a kernel whose skin touches is left out of the frame's rows, and held instead by a spring
+//! much softer than the skin (`elements/kernel_spring.rs`), which the barrier outweighs. Left
+//! free, the released skin of the bent elbow bulged 19 mm off its body points and its frames
+//! crawled unconverged. Which kernels:
 //! - at a frame's start, those whose skin stencil holds a vertex of a pair active where the last
 //!   frame ended, and those whose body stencil holds a vertex where the body's parts face each
 //!   other within the fold distance, or cross (`Surface::close_vertices`);
@@ -29,6 +31,7 @@ use rayon::prelude::*;
 
 use super::constraints::{Constraints, KernelRows};
 use super::contact;
+use super::elements::KernelSprings;
 use super::error::SolveError;
 use super::frame::Kkt;
 use super::iteration::FrameOutcome;
@@ -121,8 +124,17 @@ pub(super) fn solve(
     let result = loop {
         attempts += 1;
         let released = grown(&all.kernels, released(&all.kernels, &near, &folded), attempts - 1);
-        let kept = all.kernels.iter().zip(&released).filter(|(_, r)| !**r).map(|(k, _)| k.clone()).collect();
-        packed.constraints = Constraints::new(kept, &packed.state.x);
+        let (kept, freed): (Vec<_>, Vec<_>) = all.kernels.iter().zip(&released).partition(|(_, r)| !**r);
+        packed.constraints = Constraints::new(kept.into_iter().map(|(k, _)| k.clone()).collect(), &packed.state.x);
+        let state = packed.contact.as_mut().expect("a patch with contact");
+        let same = attempts == 1 && state.released == released;
+        if !same {
+            // (the springs' stencils change the pattern)
+            let freed = freed.into_iter().map(|(k, _)| k.clone()).collect();
+            packed.elements.kernel_springs = KernelSprings::new(freed, state.kernel_spring);
+            let s = &packed.state;
+            *pattern = Pattern::build(&s.x, &s.fixed, &s.tie, &packed.elements);
+        }
         let state = packed.contact.as_mut().expect("a patch with contact");
         tracing::debug!(
             attempt = attempts,
@@ -131,7 +143,6 @@ pub(super) fn solve(
             released = released.iter().filter(|r| **r).count(),
             "release"
         );
-        let same = attempts == 1 && state.released == released;
         state.released = released;
         let mut kkt = match cache.take() {
             Some(k) if same => k,

@@ -7,7 +7,16 @@ use rayon::prelude::*;
 
 use nalgebra::{SMatrix, SVector};
 
-use crate::physics::QuadraticBending;
+/// A kind whose elements are k_i / 2 |sum_j w_j x_j - o_i|^2 over a stencil of any length
+/// (`Scatter::weighted_sums`): quadratic bending, released kernels' springs.
+pub(crate) trait WeightedSums {
+    fn count(&self) -> usize;
+    /// Element i's stencil and weights.
+    fn weights(&self, i: usize) -> (&[u32], &[f64]);
+    fn stiffness(&self, i: usize) -> f64;
+    /// r_i = sum_j w_j x_j - o_i.
+    fn residual(&self, i: usize, x: &[DVec3]) -> DVec3;
+}
 
 /// Elements per parallel chunk: large enough to amortize the fork, small enough to stay in cache.
 pub(crate) const CHUNK: usize = 1024;
@@ -151,14 +160,14 @@ impl Scatter<'_> {
         }
     }
 
-    /// Quadratic bending: W = k / 2 |sum_j w_j x_j|^2, gradient k w_a r at vertex a, Hessian
-    /// k w_a w_b I3 (constant). Serial: a few flops per stencil pair.
-    pub(crate) fn quadratic(&mut self, q: &QuadraticBending, map: &[u32], x: &[DVec3]) -> f64 {
+    /// Weighted sums: W = k / 2 |r|^2 with r = sum_j w_j x_j - o, gradient k w_a r at vertex a,
+    /// Hessian k w_a w_b I3 (constant). Serial: a few flops per stencil pair.
+    pub(crate) fn weighted_sums(&mut self, q: &dyn WeightedSums, map: &[u32], x: &[DVec3]) -> f64 {
         let (mut energy, mut m) = (0.0, 0);
-        for i in 0..q.len() {
-            let (vs, ws) = q.stencil(i);
-            let k = q.k[i];
-            let r = q.laplacian(i, x);
+        for i in 0..q.count() {
+            let (vs, ws) = q.weights(i);
+            let k = q.stiffness(i);
+            let r = q.residual(i, x);
             energy += 0.5 * k * r.length_squared();
             let mut g2 = 0.0;
             for (&v, &w) in vs.iter().zip(ws) {

@@ -3,7 +3,7 @@
 //! lines along the compression at 25 % and 75 % of the width (`wrinkles::line_correlation`),
 //! after 5 % compression, against the same scene without the randomization. The mesh is
 //! patch_3d_randomized_small's resolution on half its length (15 x 10 mm, 48 x 32 elements), so
-//! the pair runs in about two minutes.
+//! the pair runs in about two minutes (one at a time).
 //! `cargo test --release -p skinsim-cli --test h15_randomized -- --nocapture` prints the figures.
 
 use std::path::Path;
@@ -34,7 +34,12 @@ fn correlation(randomized: bool) -> f64 {
 
 #[test]
 fn a_randomized_corneum_breaks_the_symmetry_a_uniform_one_keeps() {
-    let (uniform, randomized) = (correlation(false), correlation(true));
+    // (the two runs side by side: much of a solve is serial)
+    let (uniform, randomized) = std::thread::scope(|s| {
+        let uniform = s.spawn(|| correlation(false));
+        let randomized = correlation(true);
+        (uniform.join().unwrap(), randomized)
+    });
     println!(
         "patch_3d_randomized_small at 15 x 10 mm, 5 % compression: lines at 25 % and 75 % of the width correlate \
          {uniform:.3} (uniform corneum) against {randomized:.3} (randomized +-20 %)"

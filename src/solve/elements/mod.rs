@@ -8,6 +8,7 @@ mod contact;
 mod friction;
 mod gaussian;
 mod hinge;
+mod kernel_spring;
 mod membrane;
 mod pin;
 mod quadratic;
@@ -17,6 +18,7 @@ mod tet;
 pub use anchor::AnchorElem;
 pub use cell::CellElem;
 pub use hinge::HingeElem;
+pub use kernel_spring::KernelSprings;
 pub use membrane::MembraneElem;
 pub use pin::PinElem;
 pub use spring::SpringElem;
@@ -70,6 +72,8 @@ elements! {
     /// layers are remeshed): v = [vertex, face corners], w = [1, -barycentric], target 0.
     face_springs: Vec<AnchorElem<4>>,
     pins: Vec<PinElem>,
+    /// Released LK14 kernels held by soft springs (a patch with contact; `solve::release`).
+    kernel_springs: KernelSprings,
     /// Barrier contact pairs near the state (a patch with `contact`; refreshed as it moves).
     contacts: crate::contact::ContactPairs,
     /// Lagged friction: the contact pairs touching at the frame's start (contact with friction).

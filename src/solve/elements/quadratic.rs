@@ -7,7 +7,7 @@ use glam::{DMat3, DVec3};
 use crate::physics::psd::Filter;
 use crate::physics::QuadraticBending;
 use crate::solve::element::{Coupling, Part, Term, TermList};
-use crate::solve::scatter::Scatter;
+use crate::solve::scatter::{Scatter, WeightedSums};
 
 impl Term for QuadraticBending {
     fn part(&self) -> Part {
@@ -24,7 +24,7 @@ impl Term for QuadraticBending {
         QuadraticBending::energy(self, x)
     }
     fn assemble(&self, acc: &mut Scatter<'_>, map: &[u32], x: &[DVec3], _filter: Filter) -> f64 {
-        acc.quadratic(self, map, x)
+        acc.weighted_sums(self, map, x)
     }
     fn add_gradient(&self, x: &[DVec3], g: &mut [DVec3]) {
         for i in 0..QuadraticBending::len(self) {
@@ -55,6 +55,21 @@ impl Term for QuadraticBending {
         let w = self.stencil(i).1[k];
         let kw = self.k[i] * w;
         (kw * self.laplacian(i, x), DMat3::from_diagonal(DVec3::splat(kw * w)))
+    }
+}
+
+impl WeightedSums for QuadraticBending {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn weights(&self, i: usize) -> (&[u32], &[f64]) {
+        self.stencil(i)
+    }
+    fn stiffness(&self, i: usize) -> f64 {
+        self.k[i]
+    }
+    fn residual(&self, i: usize, x: &[DVec3]) -> DVec3 {
+        self.laplacian(i, x)
     }
 }
 
