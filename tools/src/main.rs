@@ -373,6 +373,20 @@ const MAX_THREADS_PER_CORE: usize = 16;
 const INTERRUPTED: u8 = 130;
 
 fn run(args: RunArgs) -> ExitCode {
+    // (before the scene loads: building it runs on rayon's pool, which then exists with a
+    // thread per core and cannot be resized)
+    if let Some(n) = args.threads {
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        let max = MAX_THREADS_PER_CORE * cores;
+        if n == 0 || n > max {
+            eprintln!("error: --threads must be in 1..={max} ({MAX_THREADS_PER_CORE} per core; got {n})");
+            return ExitCode::from(2);
+        }
+        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+            eprintln!("error: cannot start {n} worker threads: {e}");
+            return ExitCode::from(1);
+        }
+    }
     let scene = match load(&args.scene) {
         Ok(s) => s,
         Err(code) => return code,
@@ -383,14 +397,6 @@ fn run(args: RunArgs) -> ExitCode {
     if args.frames == Some(0) {
         eprintln!("error: --frames must be at least 1");
         return ExitCode::from(2);
-    }
-    if let Some(n) = args.threads {
-        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
-        let max = MAX_THREADS_PER_CORE * cores;
-        if n == 0 || n > max || rayon::ThreadPoolBuilder::new().num_threads(n).build_global().is_err() {
-            eprintln!("error: --threads must be in 1..={max} ({MAX_THREADS_PER_CORE} per core; got {n})");
-            return ExitCode::from(2);
-        }
     }
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.scene.name));
     if let Err(e) = std::fs::create_dir_all(&out) {

@@ -135,6 +135,46 @@ fn run_writes_stats_recording_and_obj() {
     assert!(max_x > 0.007 && max_x < 0.0081, "{max_x}");
 }
 
+/// `--threads` on a scene whose building runs on rayon's pool (a contact surface's pairs at
+/// rest): the pool is sized before the scene loads. Before, every such scene refused any
+/// count ("must be in 1..=32 ... got 1"). One thread and two give the same frames.
+#[test]
+fn threads_apply_to_scenes_built_in_parallel() {
+    let d = scratch("threads");
+    let strip = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/examples/fold_strip.ron");
+    let frames = |threads: &str| {
+        let out = d.join(format!("t{threads}"));
+        let o = skinsim()
+            .args(["run", "--quiet", "--no-rerun", "--export", "obj", "--frames", "2", "--threads", threads, "--out"])
+            .arg(&out)
+            .arg(&strip)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "--threads {threads}: {}", String::from_utf8_lossy(&o.stderr));
+        let mut files: Vec<PathBuf> = walk(&out.join("obj"));
+        files.sort();
+        files.iter().map(|f| std::fs::read(f).unwrap()).collect::<Vec<_>>()
+    };
+    let one = frames("1");
+    assert!(!one.is_empty());
+    assert_eq!(one, frames("2"), "one thread and two give the same OBJ frames");
+}
+
+/// Every file under `dir`.
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .flat_map(|e| {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p)
+            } else {
+                vec![p]
+            }
+        })
+        .collect()
+}
+
 /// One recording per run: two runs of one scene get different recording ids (a viewer shows
 /// them side by side instead of merging them); `--recording-id` fixes it; the recording carries
 /// the scene's name, its file's SHA-256, the version and the thread count as properties.
