@@ -112,6 +112,8 @@ pub(super) fn rebuild(
     if let Some(old) = packed.contact.take() {
         (state.stiffness, state.stiffness_min, state.stiffness_max) =
             (old.stiffness, old.stiffness_min, old.stiffness_max);
+        // (taken once, before any barrier: with the stiffness carried over it is not taken again)
+        state.kernel_spring = old.kernel_spring;
     }
     packed.contact = Some(state);
 }
