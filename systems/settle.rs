@@ -8,7 +8,7 @@
 use bevy_ecs::prelude::*;
 use skinsim::model::{PackedIndex, Unsettled};
 use skinsim::solve::local::solve_region;
-use skinsim::solve::settle::settle;
+use skinsim::solve::settle::{settle, Bound};
 use skinsim::solve::{PackedPatch, SolverSettings};
 
 pub fn settle_remeshed(
@@ -23,14 +23,32 @@ pub fn settle_remeshed(
                 .collect()
         };
         let (sweeps, solve) = (marked(|u| u.sweeps), marked(|u| u.solve));
-        let PackedPatch { state, elements, constraints, .. } = packed.as_mut();
+        let PackedPatch { state, elements, constraints, contact, .. } = packed.as_mut();
         if !sweeps.is_empty() {
-            let s = settle(elements, constraints, &mut state.x, &state.fixed, &state.tie, &sweeps);
+            let s = match contact.as_mut().filter(|c| c.last.len() == state.x.len()) {
+                // With contact, the settle moves the skin where the last solve left it, the
+                // bodies there too (a state no pair crosses), each step under the collision
+                // bound; the frame's solve then moves on from there (`solve::contact`).
+                Some(c) => {
+                    let bound = Bound::new(c, &c.last, &state.fixed);
+                    let mut y = c.last.clone();
+                    let s = settle(elements, constraints, &mut y, (&state.fixed, &state.tie), &sweeps, Some(&bound));
+                    for (v, (y, last)) in y.iter().zip(&c.last).enumerate() {
+                        if y != last {
+                            state.x[v] = *y;
+                        }
+                    }
+                    c.last = y;
+                    s
+                }
+                None => settle(elements, constraints, &mut state.x, (&state.fixed, &state.tie), &sweeps, None),
+            };
             tracing::debug!(
                 vertices = s.vertices,
                 sweeps = s.sweeps,
                 before = s.energy_before,
                 after = s.energy_after,
+                ccd_cuts = s.ccd_cuts,
                 "settle"
             );
         }

@@ -203,6 +203,32 @@ fn a_sheet_pressed_onto_a_sphere_drapes_over_it() {
     assert!(crossed > 0, "without contact the sphere passes through the sheet");
 }
 
+/// Contact on a remeshed layer (CCD bounds every step, in Newton and in Settle): the sheet
+/// pressed onto the sphere, refined where it drapes over it. Near contact the remesh keeps the
+/// surface's shape (splits on the straight edge, no flip or collapse), and the Settle moves the
+/// skin from where the last solve left it under the collision bound. Every frame converges, no
+/// sheet face crosses the sphere or comes within half the thickness of it, and the sheet is
+/// refined (1,279 vertices at the start).
+#[test]
+fn a_remeshed_sheet_pressed_onto_a_sphere_never_passes_through() {
+    let remesh = "bending: Some((model: Tan)),\n                      remesh: Some((size_min: 0.3, size_max: 1.5, \
+                  refine_angle: 0.1, refine_compression: 0.02))),";
+    let scene = variant("examples/press_sphere.ron", &[("bending: Some((model: Tan))),", remesh)]);
+    let measure = |sim: &mut Simulation, _: &FrameStats| {
+        let (_, xs, fs) = sim.layer_surface("sheet", "sheet");
+        let (_, xb, fb) = sim.layer_surface("sheet", "sphere");
+        let (x, faces) = merged(&[(xs.clone(), fs.clone()), (xb.clone(), fb.clone())]);
+        (crossing_pairs(&faces, &x).len(), closest_between((&xs, &fs), (&xb, &fb)), xs.len())
+    };
+    let frames = every_frame(&scene, measure);
+    for (frame, &(crossing, closest, _)) in frames.iter().enumerate() {
+        assert_eq!(crossing, 0, "frame {}: the sheet crosses the sphere", frame + 1);
+        assert!(closest > 0.15e-3, "frame {}: {closest} m from the sphere", frame + 1);
+    }
+    let vertices: Vec<usize> = frames.iter().map(|f| f.2).collect();
+    assert!(vertices.last() > vertices.first(), "the sheet is refined: {vertices:?}");
+}
+
 /// Friction (`scenes/examples/grip_sphere.ron`): the sheet pressed onto the sphere grips it
 /// (mu = 1) as it turns 2 degrees about its centre, so the sheet over the sphere's top is
 /// carried along with it (0.21 mm) where static friction holds; frictionless, the sphere turns
@@ -368,6 +394,15 @@ fn bad_contact_input_is_refused_naming_the_field() {
     mentions(&e, &["patches[0] (\"p\").contact", "dynamics"]);
     let e = refused(&CONTACT.replace("name: \"p\",", "name: \"p\", solver: (globalization: TrustRegion),"));
     mentions(&e, &["patches[0] (\"p\").contact", "TrustRegion"]);
+    let remeshed = "bending: (model: Tan),\n                      remesh: Some((size_min: 0.25, size_max: 2.0, refine_angle: 0.3, \
+                     refine_compression: 0.2, local_solve: true))),";
+    let e = refused(&CONTACT.replace("bending: (model: Tan)),", remeshed));
+    mentions(&e, &["patches[0] (\"p\").contact", "local_solve"]);
+    load_str(
+        &CONTACT.replace("bending: (model: Tan)),", &remeshed.replace(", local_solve: true", "")),
+        "s.ron".as_ref(),
+    )
+    .expect("contact on a remeshed layer");
     let e = refused(&CONTACT.replace("contact: Some((thickness: 0.1, d_hat: 0.05)),", "contact: Some((d_hat: 0.05)),"));
     mentions(&e, &["thickness"]);
     // A start closer than the thickness: a body 0.02 under a film whose barrier keeps 0.05.

@@ -419,3 +419,25 @@ fn a_joint_needs_a_width_and_two_axes() {
     let e = err(&with(r#"Joint(layers: ["bone"], pivot: (2.0, 1.0, 0.0), width: 1.0, keyframes: [(0, 0.0)])"#));
     mentions(&e, &["drivers[0].layers", "no layer named \"bone\""]);
 }
+
+/// A blend shape moves each vertex of a layer as built; on a remeshed layer (new vertices after
+/// the first remesh) it is refused at `check`, naming the driver, instead of failing mid-run.
+#[test]
+fn a_blend_shape_on_a_remeshed_layer_is_refused() {
+    let remeshed = GOOD
+        .replace(
+            "bending: (model: Tan)),",
+            "bending: (model: Tan),\n                      remesh: Some((size_min: 0.25, size_max: 2.0, refine_angle: 0.3, \
+             refine_compression: 0.2))),",
+        )
+        .replace(
+            "Attach(layer: \"film\", to: \"base\", stiffness: 0.01),",
+            "Pin(layer: \"film\", select: Sides([XMin])),\n                BlendShape(layer: \"film\", targets: [Target(shape: \
+             Compress(axis: X, strain: 0.1), weights: [(0, 0.0), (2, 1.0)])]),",
+        );
+    let e = err(&remeshed);
+    mentions(&e, &["patches[0] (\"p\").drivers[2].layer", "\"film\" is remeshed"]);
+    // (on the kinematic layer below it, the same blend shape is taken)
+    load_str(&remeshed.replace("BlendShape(layer: \"film\"", "BlendShape(layer: \"base\""), Path::new("s.ron"))
+        .unwrap();
+}

@@ -173,6 +173,19 @@ impl ContactState {
         pairs
     }
 
+    /// The vertices of every pair whose boxes come within the list's reach plus `extra` of each
+    /// other at the end of the last solve (none before it): where a remesh must keep the surface's shape
+    /// (`mesh::remesh::FaceRules::kept`).
+    pub fn near_vertices(&self, extra: f64) -> std::collections::BTreeSet<u32> {
+        if self.last.is_empty() {
+            return Default::default();
+        }
+        broad::candidates(&self.surface, &self.last, None, self.list_reach() + extra)
+            .into_iter()
+            .flat_map(|p| p.v)
+            .collect()
+    }
+
     /// The same pairs, neither counted nor kept as the list (a one-off check).
     pub fn free_pairs(&self, x: &[DVec3], x1: Option<&[DVec3]>, fixed: &[[bool; 3]]) -> Vec<Pair> {
         let mut pairs = broad::candidates(&self.surface, x, x1, self.list_reach());

@@ -6,7 +6,7 @@
 use glam::{DMat2, DVec2, DVec3};
 use noise::NoiseFn;
 
-use super::remesh::{remesh_sized, RemeshParams, RemeshVertex, Remeshed};
+use super::remesh::{remesh_sized, FaceRules, RemeshParams, RemeshVertex, Remeshed};
 use super::shading::vertex_normals;
 
 #[derive(Clone, Debug)]
@@ -78,11 +78,11 @@ pub fn remesh_under(
     input: Vec<RemeshVertex>,
     faces: &[[u32; 3]],
     extra: &[DMat2],
-    held: &[bool],
+    rules: &FaceRules,
     p: &RemeshParams,
 ) -> Remeshed {
     let at_rest = input.iter().all(|v| v.x == v.rest && v.v == DVec3::ZERO);
-    let mut out = remesh_rest(imperfection, input, faces, extra, held, p);
+    let mut out = remesh_rest(imperfection, input, faces, extra, rules, p);
     if at_rest {
         out.vertices.iter_mut().filter(|v| v.origin.is_none()).for_each(|v| v.x = v.rest);
         out.at_rest = true;
@@ -95,10 +95,10 @@ fn remesh_rest(
     mut input: Vec<RemeshVertex>,
     faces: &[[u32; 3]],
     extra: &[DMat2],
-    held: &[bool],
+    rules: &FaceRules,
     p: &RemeshParams,
 ) -> Remeshed {
-    let Some(imp) = imperfection else { return remesh_sized(&input, faces, extra, held, p) };
+    let Some(imp) = imperfection else { return remesh_sized(&input, faces, extra, rules, p) };
     let split = |v: &[RemeshVertex]| -> (Vec<DVec3>, Vec<DVec2>, Vec<[bool; 3]>) {
         (v.iter().map(|v| v.rest).collect(), v.iter().map(|v| v.uv).collect(), v.iter().map(|v| v.fixed).collect())
     };
@@ -106,7 +106,7 @@ fn remesh_rest(
     let mut rest = original.clone();
     imp.apply(-1.0, &mut rest, &uv, faces, &fixed, |_| true);
     input.iter_mut().zip(rest).for_each(|(v, r)| v.rest = r);
-    let mut out = remesh_sized(&input, faces, extra, held, p);
+    let mut out = remesh_sized(&input, faces, extra, rules, p);
     let (mut rest, uv, fixed) = split(&out.vertices);
     imp.apply(1.0, &mut rest, &uv, &out.faces, &fixed, |i| out.vertices[i].origin.is_none());
     for (v, r) in out.vertices.iter_mut().zip(rest) {

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::built::{BuiltLayer, BuiltPatch, BuiltScene};
+use super::built::{BuiltDriver, BuiltLayer, BuiltPatch, BuiltScene};
 use super::context::{Builder, PatchContext};
 use super::error::SceneError;
 use super::schema::*;
@@ -315,6 +315,20 @@ impl Builder {
         for (di, d) in p.drivers.iter().enumerate() {
             let dat = format!("{at}.drivers[{di}]");
             let built = self.driver(&dat, d, &cx)?;
+            // (these move each vertex by its index in the layer as built: a remesh renumbers it)
+            if let BuiltDriver::BlendShape { layer, .. }
+            | BuiltDriver::Sequence { layer, .. }
+            | BuiltDriver::Rig { layer, .. } = &built
+            {
+                if layers[*layer].remesh.is_some() {
+                    let message = format!(
+                        "\"{}\" is remeshed: a blend shape, sequence or rig moves each vertex of the mesh as \
+                         given, and a remesh makes new ones (drive a layer below it instead)",
+                        layers[*layer].name
+                    );
+                    return Err(self.err(format!("{dat}.layer"), message));
+                }
+            }
             if let (Some(bi), true) = (body, built.layers().contains(&0)) {
                 let message =
                     format!("the body \"{}\" moves by its own drivers (bodies[{bi}].drivers)", layers[0].name);

@@ -63,8 +63,10 @@ impl Builder {
         if p.solver.globalization == crate::solve::Globalization::TrustRegion {
             return refuse("with the TrustRegion globalization (its steps take no collision bound)");
         }
-        if layers.iter().any(|l| l.remesh.is_some()) {
-            return refuse("on a remeshed layer");
+        // (a remeshed layer settles under the collision bound, `solve::settle`; the region solve
+        // after it is a sub-problem without the patch's other surfaces)
+        if layers.iter().any(|l| l.remesh.is_some_and(|r| r.local_solve)) {
+            return refuse("on a remeshed layer with local_solve");
         }
         if p.solver.mode != SolveMode::Quasistatic {
             return refuse("with dynamics (solver mode other than Quasistatic)");

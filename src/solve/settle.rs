@@ -15,6 +15,7 @@ use glam::{DMat3, DVec3};
 use super::constraints::Constraints;
 use super::element::Term;
 use super::elements::Elements;
+use crate::contact::{ccd, gather, ContactState, Pair};
 
 /// What a settle did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -24,6 +25,66 @@ pub struct Settled {
     /// Membrane + bending energy of the settled vertices' elements, before and after (J).
     pub energy_before: f64,
     pub energy_after: f64,
+    /// Steps the collision bound shortened (with contact).
+    pub ccd_cuts: u32,
+}
+
+/// The collision bound on a settle's steps, with contact (issue 64: continuous collision
+/// detection bounds every step, in Newton and in Settle): the pairs near the start within the
+/// list's reach, each vertex's among them, and the start. A vertex goes no farther than half the
+/// list's margin from its start, so the list holds every pair it can reach (a Verlet list's
+/// rule), and no step passes the time of impact of a pair it moves (additive CCD).
+pub struct Bound {
+    pairs: Vec<Pair>,
+    of: Vec<Vec<u32>>,
+    at: Vec<DVec3>,
+    reach: f64,
+}
+
+impl Bound {
+    pub fn new(state: &ContactState, x: &[DVec3], fixed: &[[bool; 3]]) -> Bound {
+        let pairs = state.free_pairs(x, None, fixed);
+        let mut of = vec![Vec::new(); x.len()];
+        for (i, p) in pairs.iter().enumerate() {
+            for &v in &p.v {
+                of[v as usize].push(i as u32);
+            }
+        }
+        Bound { pairs, of, at: x.to_vec(), reach: 0.5 * state.margin }
+    }
+
+    /// The largest fraction in [0, 1] of moving vertex v by `step` from `x` that keeps it within
+    /// reach of its start and that no pair crosses.
+    fn vertex(&self, x: &[DVec3], v: usize, step: DVec3) -> f64 {
+        let (c, ss) = (x[v] - self.at[v], step.length_squared());
+        if ss == 0.0 {
+            return 1.0;
+        }
+        // (|c + a step| = reach, the positive root; |c| <= reach)
+        let cs = c.dot(step);
+        let within = (-cs + (cs * cs - ss * (c.length_squared() - self.reach * self.reach)).max(0.0).sqrt()) / ss;
+        let mut alpha = within.min(1.0);
+        for &i in &self.of[v] {
+            let p = &self.pairs[i as usize];
+            let d: [[f64; 3]; 4] = p.v.map(|u| if u as usize == v { step.to_array() } else { [0.0; 3] });
+            if let Some(t) = ccd::additive_toi(p.kind, &gather(x, &p.v), &d, p.barrier.offset, alpha) {
+                alpha = alpha.min(t);
+            }
+        }
+        alpha.max(0.0)
+    }
+
+    /// The same for moving every vertex by `d` at once.
+    fn all(&self, x: &[DVec3], d: &[DVec3]) -> f64 {
+        let mut alpha = 1.0f64;
+        for (v, step) in d.iter().enumerate().filter(|(_, s)| **s != DVec3::ZERO) {
+            let (c, ss) = (x[v] - self.at[v], step.length_squared());
+            let cs = c.dot(*step);
+            let within = (-cs + (cs * cs - ss * (c.length_squared() - self.reach * self.reach)).max(0.0).sqrt()) / ss;
+            alpha = alpha.min(within);
+        }
+        alpha.min(ContactState::step_bound(&self.pairs, x, d)).max(0.0)
+    }
 }
 
 /// Sweeps at most; a sweep whose largest step is below `STEP_TOL` of the vertices' mean edge
@@ -43,16 +104,19 @@ struct Slot {
     slot: usize,
 }
 
+/// Each vertex's prescribed coordinates, and its tie (`PackedState::tie`).
+pub type Pins<'a> = (&'a [[bool; 3]], &'a [(u32, [bool; 3])]);
+
 /// Settles the vertices `which` (packed indices; vertices with a prescribed coordinate or a
 /// shared one are left alone) in `x`, then restores the kernel constraints' values (`keep`).
-/// Deterministic: vertices in the order given.
+/// With contact, `bound` bounds every step. Deterministic: vertices in the order given.
 pub fn settle(
     el: &Elements,
     constraints: &Constraints,
     x: &mut [DVec3],
-    fixed: &[[bool; 3]],
-    tie: &[(u32, [bool; 3])],
+    (fixed, tie): Pins,
     which: &[u32],
+    bound: Option<&Bound>,
 ) -> Settled {
     let free: Vec<u32> = which
         .iter()
@@ -82,13 +146,15 @@ pub fn settle(
         out.sweeps += 1;
         let mut largest = 0.0f64;
         for (i, &v) in free.iter().enumerate() {
-            largest = largest.max(relax_vertex(&terms, x, v as usize, &slots[i]));
+            let (step, cut) = relax_vertex(&terms, x, v as usize, &slots[i], bound);
+            largest = largest.max(step);
+            out.ccd_cuts += u32::from(cut);
         }
         if largest < STEP_TOL * scale {
             break;
         }
     }
-    keep(constraints, &free, &local, &start, x);
+    out.ccd_cuts += u32::from(keep(constraints, &free, &local, &start, x, bound));
     out.energy_after = energy_of(x);
     out
 }
@@ -100,7 +166,15 @@ pub fn settle(
 /// W). Only the upper side is kept: a settled lower layer moves its kernels' targets through
 /// its normals, left to the solve. (Measured on the remesh test scene: the constraint jump at a
 /// remesh is 6.8e-5 of the patch size settled without this, 2.97e-5 with it, as unsettled.)
-fn keep(constraints: &Constraints, free: &[u32], local: &[u32], start: &[DVec3], x: &mut [DVec3]) {
+/// With `bound`, the correction is shortened where it would cross a pair; returns whether it was.
+fn keep(
+    constraints: &Constraints,
+    free: &[u32],
+    local: &[u32],
+    start: &[DVec3],
+    x: &mut [DVec3],
+    bound: Option<&Bound>,
+) -> bool {
     // Kernel rows over settled vertices: (local index, weight).
     let rows: Vec<Vec<(usize, f64)>> = constraints
         .kernels
@@ -115,7 +189,7 @@ fn keep(constraints: &Constraints, free: &[u32], local: &[u32], start: &[DVec3],
         .filter(|r: &Vec<(usize, f64)>| !r.is_empty())
         .collect();
     if rows.is_empty() {
-        return;
+        return false;
     }
     let apply_t = |y: &[DVec3]| {
         let mut d = vec![DVec3::ZERO; free.len()];
@@ -137,7 +211,7 @@ fn keep(constraints: &Constraints, free: &[u32], local: &[u32], start: &[DVec3],
         let ap = apply(&apply_t(&p));
         let alpha = rr / dot(&p, &ap);
         if !alpha.is_finite() {
-            return;
+            return false;
         }
         y.iter_mut().zip(&p).for_each(|(y, p)| *y += alpha * *p);
         r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * *a);
@@ -145,17 +219,22 @@ fn keep(constraints: &Constraints, free: &[u32], local: &[u32], start: &[DVec3],
         p.iter_mut().zip(&r).for_each(|(p, r)| *p = *r + (next / rr) * *p);
         rr = next;
     }
-    for (&v, d) in free.iter().zip(apply_t(&y)) {
-        x[v as usize] += d;
+    let mut d = vec![DVec3::ZERO; x.len()];
+    for (&v, dv) in free.iter().zip(apply_t(&y)) {
+        d[v as usize] = dv;
     }
+    let alpha = bound.map_or(1.0, |b| b.all(x, &d));
+    x.iter_mut().zip(&d).for_each(|(x, d)| *x += alpha * *d);
+    alpha < 1.0
 }
 
 fn slot_energy(terms: &[&dyn Term], x: &[DVec3], s: Slot) -> f64 {
     terms[s.kind as usize].element_energy(s.element as usize, x)
 }
 
-/// One projected Newton step on vertex v, backtracked on its elements' energy; the step taken.
-fn relax_vertex(terms: &[&dyn Term], x: &mut [DVec3], v: usize, slots: &[Slot]) -> f64 {
+/// One projected Newton step on vertex v, backtracked on its elements' energy from the fraction
+/// `bound` allows; the step taken, and whether the bound shortened it.
+fn relax_vertex(terms: &[&dyn Term], x: &mut [DVec3], v: usize, slots: &[Slot], bound: Option<&Bound>) -> (f64, bool) {
     let (mut g, mut h) = (DVec3::ZERO, DMat3::ZERO);
     for &s in slots {
         let (gv, hv) = terms[s.kind as usize].block(s.element as usize, s.slot, x);
@@ -164,23 +243,24 @@ fn relax_vertex(terms: &[&dyn Term], x: &mut [DVec3], v: usize, slots: &[Slot]) 
     }
     // The exact block, its eigenvalues clamped to a floor (a descent direction even where the
     // vertex sits on a ridge of its own energy, a finite step where it is weakly held).
-    let Some(step) = projected_newton_step(h, g) else { return 0.0 };
+    let Some(step) = projected_newton_step(h, g) else { return (0.0, false) };
     if !step.is_finite() {
-        return 0.0;
+        return (0.0, false);
     }
     let start = x[v];
     let e0: f64 = slots.iter().map(|&s| slot_energy(terms, x, s)).sum();
-    let mut alpha = 1.0;
+    let mut alpha = bound.map_or(1.0, |b| b.vertex(x, v, step));
+    let cut = alpha < 1.0;
     for _ in 0..HALVINGS {
         x[v] = start + alpha * step;
         let e: f64 = slots.iter().map(|&s| slot_energy(terms, x, s)).sum();
         if e < e0 {
-            return alpha * step.length();
+            return (alpha * step.length(), cut);
         }
         alpha *= 0.5;
     }
     x[v] = start;
-    0.0
+    (0.0, cut)
 }
 
 /// -H^+ g with H's eigenvalues clamped below at 1e-6 of the largest (None if H is zero or
@@ -273,7 +353,7 @@ mod tests {
             rest.iter().map(|p| [p.x == 0.0 || p.x == 1.0 || p.y == 0.0 || p.y == 1.0; 3]).collect();
         let tie: Vec<(u32, [bool; 3])> = (0..n).map(|i| (i, [false; 3])).collect();
         let mut x = bumped.clone();
-        let s = settle(&el, &Constraints::default(), &mut x, &fixed, &tie, &which);
+        let s = settle(&el, &Constraints::default(), &mut x, (&fixed, &tie), &which, None);
         println!("{element:?}: {:.3} of the energy left", s.energy_after / s.energy_before);
         assert!(which.len() >= 5 && s.vertices == which.len(), "{s:?}");
         // (four sweeps: measured 0.058 of the energy left with hinges, 0.053 quadratic)
@@ -282,7 +362,49 @@ mod tests {
             assert_eq!(x[i as usize], bumped[i as usize], "vertex {i} moved");
         }
         let mut again = bumped.clone();
-        assert_eq!(settle(&el, &Constraints::default(), &mut again, &fixed, &tie, &which), s);
+        assert_eq!(settle(&el, &Constraints::default(), &mut again, (&fixed, &tie), &which, None), s);
         assert_eq!(again, x);
+    }
+
+    /// With contact: a vertex lifted 0.1 over a flat sheet settles back down through a small
+    /// held triangle 0.05 over the sheet without the collision bound, and stops over it with
+    /// the bound (issue 64: CCD bounds every step in Settle).
+    #[test]
+    fn a_settle_under_the_collision_bound_does_not_pass_through() {
+        use crate::contact::{Surface, SurfaceLayer};
+        let (el, rest) = sheet(BendingElement::Hinge);
+        let n = rest.len() as u32;
+        let v = (0..n).min_by(|&a, &b| {
+            let d = |i: u32| rest[i as usize].distance(DVec3::new(0.5, 0.5, 0.0));
+            d(a).total_cmp(&d(b))
+        });
+        let v = v.unwrap();
+        let c = rest[v as usize] + DVec3::Z * 0.05;
+        let r = 0.03;
+        let triangle = [
+            c + DVec3::new(r, 0.0, 0.0),
+            c + DVec3::new(-0.5 * r, 0.8 * r, 0.0),
+            c + DVec3::new(-0.5 * r, -0.8 * r, 0.0),
+        ];
+        let all: Vec<DVec3> = rest.iter().copied().chain(triangle).collect();
+        let mut x = all.clone();
+        x[v as usize].z = 0.1;
+        let mut fixed: Vec<[bool; 3]> =
+            rest.iter().map(|p| [p.x == 0.0 || p.x == 1.0 || p.y == 0.0 || p.y == 1.0; 3]).collect();
+        fixed.extend([[true; 3]; 3]);
+        let tie: Vec<(u32, [bool; 3])> = (0..n + 3).map(|i| (i, [false; 3])).collect();
+        let m = grid(glam::DVec2::ONE, (6, 6), GridPattern::Equilateral, 0.0);
+        let layers = [
+            SurfaceLayer { triangles: m.faces.clone(), half_thickness: 0.002, moving: true },
+            SurfaceLayer { triangles: vec![[n, n + 1, n + 2]], half_thickness: 0.0, moving: false },
+        ];
+        let state = ContactState::new(Surface::new(&layers, all.clone(), 0.002, &[]), 0.2);
+        let mut free = x.clone();
+        settle(&el, &Constraints::default(), &mut free, (&fixed, &tie), &[v], None);
+        assert!(free[v as usize].z < 0.05, "unbounded, the vertex settles through: z = {}", free[v as usize].z);
+        let bound = Bound::new(&state, &x, &fixed);
+        let s = settle(&el, &Constraints::default(), &mut x, (&fixed, &tie), &[v], Some(&bound));
+        assert!(x[v as usize].z > 0.05 + 0.002, "bounded, it stays over the triangle: z = {}", x[v as usize].z);
+        assert!(s.ccd_cuts > 0 && s.energy_after < s.energy_before, "{s:?}");
     }
 }

@@ -14,6 +14,9 @@ pub(super) struct With<'a> {
     pub contact: Option<&'a Contact>,
     pub kernels: Option<&'a PatchKernels>,
     pub obstacles: &'a [Entity],
+    /// Where the last solve left each vertex of the patch before a topology change (none before
+    /// the first solve).
+    pub last: Option<std::collections::HashMap<Entity, glam::DVec3>>,
 }
 
 /// The kernels' median radius over the fold distance. Measured on the finger bent through itself
@@ -30,7 +33,7 @@ pub(super) fn rebuild(
     layers: &Query<LayerItems>,
     items: &ElementItems,
 ) {
-    let With { contact, kernels, obstacles } = with;
+    let With { contact, kernels, obstacles, last } = with;
     let Some(c) = contact else {
         packed.contact = None;
         return;
@@ -114,6 +117,13 @@ pub(super) fn rebuild(
             (old.stiffness, old.stiffness_min, old.stiffness_max);
         // (taken once, before any barrier: with the stiffness carried over it is not taken again)
         state.kernel_spring = old.kernel_spring;
+    }
+    // The next frame moves from where the last solve left the vertices (`solve::contact::
+    // continuation`): after a remesh, the survivors from there and the new vertices from where
+    // the remesh put them, on the straight edges near contact (`remesh::FaceRules::kept`).
+    if let Some(last) = last {
+        let position = |e: &Entity| items.vertices.get(*e).expect("vertex").0 .0;
+        state.last = index.vertices.iter().map(|e| last.get(e).copied().unwrap_or_else(|| position(e))).collect();
     }
     packed.contact = Some(state);
 }

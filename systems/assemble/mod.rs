@@ -83,9 +83,13 @@ pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, 
         let key = topology_key(patch_layers.entities().iter().chain(bodies).chain(obstacles), &layers);
         let rebuilt = key != index.key;
         if rebuilt {
+            // (where the last solve left each vertex, by entity: a remesh keeps its survivors')
+            let last = packed.contact.as_ref().filter(|c| c.last.len() == index.vertices.len()).map(|c| {
+                index.vertices.iter().copied().zip(c.last.iter().copied()).collect::<std::collections::HashMap<_, _>>()
+            });
             rebuild::rebuild(packed, index, patch_layers, bodies, obstacles, &layers, &items);
             anchor_springs::rebuild(packed, index, patch_layers, &layers, &items.anchors);
-            let with = contact_surface::With { contact, kernels: patch_kernels, obstacles };
+            let with = contact_surface::With { contact, kernels: patch_kernels, obstacles, last };
             contact_surface::rebuild(packed, index, patch_layers, with, &layers, &items);
             index.key = key;
         }

@@ -121,23 +121,33 @@ impl Remeshed {
 /// `vertices[i].origin` is ignored on input and set to Some(i). Deterministic: the same input
 /// gives the same output.
 pub fn remesh(vertices: &[RemeshVertex], faces: &[[u32; 3]], p: &RemeshParams) -> Remeshed {
-    remesh_sized(vertices, faces, &[], &[], p)
+    remesh_sized(vertices, faces, &[], &FaceRules::default(), p)
+}
+
+/// What the operations may do to each input face (one flag per face, or none).
+#[derive(Clone, Debug, Default)]
+pub struct FaceRules {
+    /// Faces no operation may change (refined before they wrinkle: `sizing::held_faces`).
+    pub held: Vec<bool>,
+    /// Faces near contact, whose shape is kept: split on the straight edge only, never flipped
+    /// or collapsed, so that the remesh moves no surface into what it touches.
+    pub kept: Vec<bool>,
 }
 
 /// `remesh` with one more sizing term per input face (`sizing::wavelength_term`), or none, and
-/// the input faces no operation may change (`held`, one per face, or none).
+/// what the operations may do to each input face.
 pub(crate) fn remesh_sized(
     vertices: &[RemeshVertex],
     faces: &[[u32; 3]],
     extra: &[DMat2],
-    held: &[bool],
+    rules: &FaceRules,
     p: &RemeshParams,
 ) -> Remeshed {
     let uv: Vec<DVec2> = vertices.iter().map(|v| v.uv).collect();
     let x: Vec<DVec3> = vertices.iter().map(|v| v.x).collect();
     let vel: Vec<DVec3> = vertices.iter().map(|v| v.v).collect();
     let sizing = sizing::vertex_sizing(&uv, &x, p.refine_velocity.map(|_| vel.as_slice()), faces, extra, p);
-    let mut mesh = ops::WorkMesh::new(vertices, faces, sizing, held, p);
+    let mut mesh = ops::WorkMesh::new(vertices, faces, sizing, &rules.held, &rules.kept, p);
     mesh.flip_all();
     mesh.refine();
     mesh.coarsen();

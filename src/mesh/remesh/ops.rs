@@ -45,6 +45,10 @@ pub(super) struct WorkMesh<'a> {
     f_alive: Vec<bool>,
     /// Faces no operation may change (an input face held; every new face is free).
     f_held: Vec<bool>,
+    /// Faces whose shape is kept, near contact: split on the straight edge (the surface stays
+    /// the same point set), never flipped or collapsed (either would move the surface, maybe
+    /// into what it touches). A split face's halves are kept too.
+    f_kept: Vec<bool>,
     /// Alive faces around each vertex.
     vf: Vec<Vec<u32>>,
     /// Flip passes: a vertex is touched in the current pass when its mark equals `pass`.
@@ -74,6 +78,7 @@ impl<'a> WorkMesh<'a> {
         faces: &[[u32; 3]],
         sizing: Vec<DMat2>,
         held: &[bool],
+        kept: &[bool],
         p: &'a RemeshParams,
     ) -> Self {
         let n = vertices.len();
@@ -98,6 +103,7 @@ impl<'a> WorkMesh<'a> {
             faces: faces.to_vec(),
             f_alive: vec![true; faces.len()],
             f_held: (0..faces.len()).map(|f| held.get(f).copied().unwrap_or(false)).collect(),
+            f_kept: (0..faces.len()).map(|f| kept.get(f).copied().unwrap_or(false)).collect(),
             vf,
             mark: vec![0; n],
             pass: 0,
@@ -214,6 +220,7 @@ impl<'a> WorkMesh<'a> {
         self.faces.push(f);
         self.f_alive.push(true);
         self.f_held.push(false);
+        self.f_kept.push(false);
         for &v in &f {
             self.vf[v as usize].push(id);
         }
@@ -237,7 +244,8 @@ impl<'a> WorkMesh<'a> {
         // a PN triangle (Vlachos et al. 2001), which recovers a circular arc's sagitta to
         // second order in the turning angle.
         let d = vb.x - va.x;
-        let lift = if self.p.curved_splits { -(d.dot(na) * na - d.dot(nb) * nb) / 8.0 } else { DVec3::ZERO };
+        let kept = ef[..count].iter().any(|&(f, _)| self.f_kept[f as usize]);
+        let lift = if self.p.curved_splits && !kept { -(d.dot(na) * na - d.dot(nb) * nb) / 8.0 } else { DVec3::ZERO };
         self.verts.push(RemeshVertex {
             uv: 0.5 * (va.uv + vb.uv),
             x: 0.5 * (va.x + vb.x) + lift,
@@ -260,7 +268,8 @@ impl<'a> WorkMesh<'a> {
             self.faces[f as usize] = [p, m, opp];
             self.detach(q, f);
             self.vf[m as usize].push(f);
-            self.add_face([m, q, opp]);
+            let half = self.add_face([m, q, opp]);
+            self.f_kept[half as usize] = self.f_kept[f as usize];
         }
         self.stats.splits += 1;
         m
@@ -311,7 +320,7 @@ impl<'a> WorkMesh<'a> {
     /// well-formed; returns the two faces.
     fn try_flip(&mut self, a: u32, b: u32) -> Option<[u32; 2]> {
         let (ef, count) = self.edge_faces(a, b);
-        if count != 2 || ef.iter().any(|&(f, _)| self.f_held[f as usize]) {
+        if count != 2 || ef.iter().any(|&(f, _)| self.f_held[f as usize] || self.f_kept[f as usize]) {
             return None;
         }
         // ef[0] holds a -> b (opposite c), ef[1] holds b -> a (opposite d), or the reverse.
@@ -391,7 +400,7 @@ impl<'a> WorkMesh<'a> {
             return false;
         }
         // (every face around v changes)
-        if self.vf[v as usize].iter().any(|&f| self.f_held[f as usize]) {
+        if self.vf[v as usize].iter().any(|&f| self.f_held[f as usize] || self.f_kept[f as usize]) {
             return false;
         }
         // Link condition: v and w share exactly the edge's opposite vertices (stays manifold).

@@ -214,7 +214,7 @@ fn the_wavelength_term_bounds_edges_across_the_compression_where_it_passes_the_o
         })
         .collect();
     let p = params(0.005, 0.2);
-    let out = remesh_sized(&v, &f, &terms, &[], &p);
+    let out = remesh_sized(&v, &f, &terms, &FaceRules::default(), &p);
     check(&out, 1.0);
     let bound = lambda / w.per_wavelength;
     let (mut left, mut right) = (Vec::new(), Vec::new());
@@ -330,11 +330,11 @@ fn a_remesh_leaves_held_faces_as_they_were() {
     let centre = |t: &[u32; 3]| t.iter().map(|&i| v[i as usize].uv).sum::<DVec2>() / 3.0;
     let held: Vec<bool> = f.iter().map(|t| centre(t).x < 0.35).collect();
     let p = params(0.01, 0.5);
-    let free = remesh_sized(&v, &f, &[], &[], &p);
+    let free = remesh_sized(&v, &f, &[], &FaceRules::default(), &p);
     assert!(free.stats.splits > 0 && free.stats.collapses > 0, "splits and collapses: {:?}", free.stats);
     let left = |m: &Remeshed| m.faces.iter().filter(|t| t.iter().all(|&i| m.vertices[i as usize].uv.x < 0.3)).count();
     assert!(left(&free) < f.iter().filter(|t| t.iter().all(|&i| v[i as usize].uv.x < 0.3)).count());
-    let out = remesh_sized(&v, &f, &[], &held, &p);
+    let out = remesh_sized(&v, &f, &[], &FaceRules { held: held.clone(), ..Default::default() }, &p);
     check(&out, 1.0);
     let mut kept: Vec<[u32; 3]> = out
         .faces
@@ -378,7 +378,8 @@ fn a_held_face_the_metric_wants_split_is_released() {
         let centre = |t: &[u32; 3]| t.iter().map(|&i| v[i as usize].uv).sum::<DVec2>() / 3.0;
         let held: Vec<bool> = f.iter().map(|t| centre(t).x < 0.5).collect();
         let extra = vec![glam::DMat2::IDENTITY / (0.04 * 0.04); f.len()];
-        let out = remesh_sized(&v, &f, &extra, &held, &params(0.005, 0.5));
+        let out =
+            remesh_sized(&v, &f, &extra, &FaceRules { held: held.clone(), ..Default::default() }, &params(0.005, 0.5));
         check(&out, 1.0);
         let left = out.faces.iter().filter(|t| t.iter().all(|&i| out.vertices[i as usize].uv.x < 0.45)).count();
         let before = f.iter().filter(|t| centre(t).x < 0.45).count();
@@ -388,8 +389,56 @@ fn a_held_face_the_metric_wants_split_is_released() {
         assert!(worst_quality(&out) > 0.5, "{pattern:?}: a face of quality {}", worst_quality(&out));
         // Held whole, the sheet has no free face to cut slivers against it: nothing is released
         // and nothing changes.
-        let all = remesh_sized(&v, &f, &extra, &vec![true; f.len()], &params(0.005, 0.5));
+        let all = remesh_sized(
+            &v,
+            &f,
+            &extra,
+            &FaceRules { held: vec![true; f.len()], ..Default::default() },
+            &params(0.005, 0.5),
+        );
         assert_eq!((all.stats.released, all.faces.len()), (0, f.len()), "{pattern:?}: {:?}", all.stats);
         assert!(!all.changed(), "{pattern:?}: {:?}", all.stats);
     }
+}
+
+#[test]
+fn faces_near_contact_keep_their_shape() {
+    // A sheet curved all over (a free remesh splits on the curve, flips and collapses); the
+    // faces right of 0.5 are kept. Every output face whose centroid lies in a kept input face is
+    // flat inside it, at the input's positions: the centroid lies on the input surface, so the
+    // remesh moved no surface there. Every input vertex of a kept face survives.
+    let bend = |u: DVec2| DVec3::new(u.x, u.y, 0.1 * (9.0 * u.x).sin() + 0.05 * (7.0 * u.y).cos());
+    let (v, f) = sheet(12, GridPattern::Equilateral, bend);
+    let centre = |t: &[u32; 3]| t.iter().map(|&i| v[i as usize].uv).sum::<DVec2>() / 3.0;
+    let kept: Vec<bool> = f.iter().map(|t| centre(t).x > 0.5).collect();
+    let p = params(0.01, 0.3);
+    let free = remesh_sized(&v, &f, &[], &FaceRules::default(), &p);
+    assert!(free.stats.splits > 0 && free.stats.flips > 0, "{:?}", free.stats);
+    let out = remesh_sized(&v, &f, &[], &FaceRules { kept: kept.clone(), ..Default::default() }, &p);
+    check(&out, 1.0);
+    // The input surface at material point u, in the kept input face holding it.
+    let on_input = |u: DVec2| -> Option<DVec3> {
+        f.iter().zip(&kept).filter(|(_, k)| **k).find_map(|(t, _)| {
+            let [a, b, c] = t.map(|i| v[i as usize].uv);
+            let d = (b - a).perp_dot(c - a);
+            let (l1, l2) = ((u - a).perp_dot(c - a) / d, (b - a).perp_dot(u - a) / d);
+            let l0 = 1.0 - l1 - l2;
+            (l0 >= -1e-12 && l1 >= -1e-12 && l2 >= -1e-12)
+                .then(|| l0 * v[t[0] as usize].x + l1 * v[t[1] as usize].x + l2 * v[t[2] as usize].x)
+        })
+    };
+    let mut inside = 0;
+    for t in &out.faces {
+        let [a, b, c] = t.map(|i| out.vertices[i as usize]);
+        let Some(y) = on_input((a.uv + b.uv + c.uv) / 3.0) else { continue };
+        inside += 1;
+        let x = (a.x + b.x + c.x) / 3.0;
+        assert!((x - y).length() < 1e-12, "face {t:?} moved the surface by {:.2e}", (x - y).length());
+    }
+    assert!(inside > 0);
+    let survivors: std::collections::BTreeSet<u32> = out.vertices.iter().filter_map(|w| w.origin).collect();
+    for (t, _) in f.iter().zip(&kept).filter(|(_, k)| **k) {
+        assert!(t.iter().all(|i| survivors.contains(i)), "a vertex of kept face {t:?} was collapsed");
+    }
+    assert!(out.stats.splits > 0, "the kept faces still refine: {:?}", out.stats);
 }
