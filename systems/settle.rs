@@ -39,6 +39,7 @@ pub fn settle_remeshed(
                         }
                     }
                     c.last = y;
+                    c.settle_cuts += s.ccd_cuts;
                     s
                 }
                 None => settle(elements, constraints, &mut state.x, (&state.fixed, &state.tie), &sweeps, None),

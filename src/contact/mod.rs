@@ -99,6 +99,8 @@ pub struct ContactState {
     /// through itself.
     pub body: Surface,
     pub fold: f64,
+    /// The Settle's shortened steps before this frame's solve (`ContactReport::settle_cuts`).
+    pub settle_cuts: u32,
 }
 
 /// Per frame: what contact did (the report's `contact` object).
@@ -115,6 +117,8 @@ pub struct ContactReport {
     pub stiffness: f64,
     /// Line searches whose first step the continuous collision test shortened.
     pub ccd_cuts: u32,
+    /// Steps of the Settle after a remesh that the collision bound shortened.
+    pub settle_cuts: u32,
     /// Solves the frame took: more than one where prescribed vertices (a body, a held edge)
     /// could not move to their targets in one step without meeting the skin.
     pub substeps: u32,
@@ -218,7 +222,8 @@ impl ContactState {
 
     /// Starts a frame's record (the stiffness carries over).
     pub fn begin_frame(&mut self) {
-        self.report = ContactReport { min_distance_ratio: f64::INFINITY, ..Default::default() };
+        let settle_cuts = std::mem::take(&mut self.settle_cuts);
+        self.report = ContactReport { min_distance_ratio: f64::INFINITY, settle_cuts, ..Default::default() };
     }
 
     /// Records the iterate `x` with the pairs `pairs`: active count and the smallest distance
