@@ -28,6 +28,13 @@ pub fn additive_toi(kind: Primitives, x: &[[f64; 3]; 4], dx: &[[f64; 3]; 4], off
         let d2 = squared_distance(kind, y);
         (d2 - offset * offset) / (d2.sqrt() + offset)
     };
+    // (the boxes' gap is a lower bound on the pair's: when even it needs more than the step to
+    // close by 1 - s, the first step below leaves t_max with no further test. Most listed
+    // pairs end here without their closest features.)
+    let lower = super::distance::box_gap_squared(kind, x).sqrt() - offset;
+    if lower > 0.0 && (1.0 - S) * lower / l_p > t_max {
+        return None;
+    }
     let mut y = *x;
     let g0 = gap(&y);
     if g0 <= 0.0 {
@@ -36,6 +43,9 @@ pub fn additive_toi(kind: Primitives, x: &[[f64; 3]; 4], dx: &[[f64; 3]; 4], off
     let target = S * g0;
     let mut t = 0.0;
     let mut t_l = (1.0 - S) * g0 / l_p;
+    if t_l > t_max {
+        return None;
+    }
     for _ in 0..MAX_STEPS {
         for (yi, pi) in y.iter_mut().zip(&p) {
             for k in 0..3 {

@@ -214,3 +214,21 @@ pub fn closest_points(kind: Primitives, x: &[[f64; 3]; 4]) -> ([f64; 3], [f64; 3
 pub fn squared_distance(kind: Primitives, x: &[[f64; 3]; 4]) -> f64 {
     squared(DistanceType::of(kind, x), x)
 }
+
+/// The squared distance between the bounding boxes of the pair's two primitives: a lower bound
+/// on `squared_distance` at a few comparisons' cost (most listed pairs are not near: their
+/// boxes tell so without the features).
+pub fn box_gap_squared(kind: Primitives, x: &[[f64; 3]; 4]) -> f64 {
+    let (a, b) = match kind {
+        Primitives::PointTriangle => (&x[..1], &x[1..]),
+        Primitives::EdgeEdge => (&x[..2], &x[2..]),
+    };
+    let mut gap = 0.0;
+    for k in 0..3 {
+        let (alo, ahi) = a.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| (l.min(p[k]), h.max(p[k])));
+        let (blo, bhi) = b.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| (l.min(p[k]), h.max(p[k])));
+        let d = (blo - ahi).max(alo - bhi).max(0.0);
+        gap += d * d;
+    }
+    gap
+}

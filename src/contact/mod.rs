@@ -11,6 +11,7 @@
 pub mod barrier;
 pub mod broad;
 pub mod ccd;
+pub mod closed_form;
 pub mod distance;
 pub mod friction;
 pub mod pair;
@@ -231,7 +232,15 @@ impl ContactState {
     pub fn observe(&mut self, pairs: &[Pair], x: &[DVec3]) -> f64 {
         let (mut active, mut min_z) = (0, f64::INFINITY);
         for p in pairs {
-            let d2 = p.squared_distance(&gather(x, &p.v));
+            let y = gather(x, &p.v);
+            // (a pair whose boxes are beyond the reach and farther than the closest so far
+            // changes neither figure that matters: its z / z_hat is above 1 either way)
+            let gap = distance::box_gap_squared(p.kind, &y);
+            if !p.barrier.active(gap) && gap.sqrt() / p.barrier.offset >= self.report.min_distance_ratio {
+                min_z = min_z.min(p.barrier.z(gap) / p.barrier.z_hat());
+                continue;
+            }
+            let d2 = p.squared_distance(&y);
             if p.barrier.active(d2) {
                 active += 1;
             }

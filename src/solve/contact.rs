@@ -41,7 +41,7 @@ pub(super) fn fit(packed: &mut PackedPatch, pattern: &mut Pattern) -> bool {
     // (the frame's friction pairs all have derivatives)
     let (x, pairs) = (&packed.state.x, &packed.elements.contacts.pairs);
     let friction = &packed.elements.friction.pairs;
-    let active: Vec<bool> = pairs.par_iter().map(|p| p.barrier.active(p.squared_distance(&gather(x, &p.v)))).collect();
+    let active = active(pairs, x);
     let covered = pairs.iter().zip(&active).all(|(p, &a)| !a || pattern.covers_stencil(&p.v))
         && friction.iter().all(|p| pattern.covers_stencil(&p.v));
     let (contacts, friction_kind) = (kind(packed, &packed.elements.contacts), kind(packed, &packed.elements.friction));
@@ -62,6 +62,11 @@ pub(super) fn fit(packed: &mut PackedPatch, pattern: &mut Pattern) -> bool {
     state.report.reanalyses += 1;
     *pattern = Pattern::build(&packed.state.x, &packed.state.fixed, &packed.state.tie, &packed.elements);
     true
+}
+
+/// Whether each listed pair is active at the state.
+fn active(pairs: &[crate::contact::Pair], x: &[DVec3]) -> Vec<bool> {
+    pairs.par_iter().map(|p| p.active(&gather(x, &p.v))).collect()
 }
 
 /// The contact kind's scatter map for the pairs `now` (each with whether it is active):
