@@ -16,6 +16,7 @@ pub mod log_read;
 pub mod motion;
 pub mod properties;
 pub mod remesh;
+mod remesh_contact;
 mod remesh_write;
 mod render_mesh;
 pub mod schedule;

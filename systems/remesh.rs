@@ -12,7 +12,6 @@ use skinsim::mesh::imperfection::remesh_under;
 use skinsim::mesh::remesh::sizing::{held_faces, wavelength_terms, LowerLayer, WavelengthSizing, HOLD_SLACK};
 use skinsim::mesh::remesh::{FaceRules, RemeshVertex};
 use skinsim::model::*;
-use skinsim::solve::PackedPatch;
 
 use crate::layer_arrays::LayerArrays;
 
@@ -73,7 +72,7 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
         }
         _ => Vec::new(),
     };
-    let rules = FaceRules { held, kept: near_contact(world, layer, &verts, &faces) };
+    let rules = FaceRules { held, kept: crate::remesh_contact::kept_faces(world, layer, &verts, &faces) };
     let out = remesh_under(imperfection.as_ref(), input, &faces, &extra, &rules, &settings.params);
     let small = out.is_small(settings.min_change, faces.len());
     let report = RemeshReport::new(frame, settings.params.size_max, &out, small, (verts.len(), faces.len()));
@@ -85,26 +84,6 @@ fn remesh_layer(world: &mut World, layer: Entity, settings: &RemeshSettings, ker
         }
         crate::remesh_write::apply(world, layer, &settings, &verts, (&old_faces, &tris), &out);
     }
-}
-
-/// The faces of `layer` (vertex entities `verts`, `faces` indices into them) near contact at
-/// the end of its patch's last solve: within the pair list's reach plus a median edge of a
-/// primitive they may touch (`ContactState::near_vertices`). A remesh keeps their shape: a flip
-/// or collapse there could move the surface into what it touches, and the frame's solve must
-/// start from a state no closer than the thickness. Empty without contact.
-fn near_contact(world: &World, layer: Entity, verts: &[Entity], faces: &[[u32; 3]]) -> Vec<bool> {
-    let patch = world.iter_entities().find(|e| e.get::<PatchLayers>().is_some_and(|l| l.entities().contains(&layer)));
-    let Some(patch) = patch else { return Vec::new() };
-    let (Some(packed), Some(index)) = (patch.get::<PackedPatch>(), patch.get::<PackedIndex>()) else {
-        return Vec::new();
-    };
-    let Some(state) = packed.contact.as_ref() else { return Vec::new() };
-    if state.last.len() != index.vertices.len() {
-        return Vec::new();
-    }
-    let near: std::collections::BTreeSet<Entity> =
-        state.near_vertices(state.surface.median_edge).into_iter().map(|i| index.vertices[i as usize]).collect();
-    faces.iter().map(|t| t.iter().any(|&v| near.contains(&verts[v as usize]))).collect()
 }
 
 /// The wavelength term of each face of `layer` (issue 26 item 1; `sizing::add_wavelength_terms`):

@@ -178,6 +178,18 @@ impl ContactState {
         pairs
     }
 
+    /// Which `faces` keep their shape in a remesh (`mesh::remesh::FaceRules::kept`): those with
+    /// a vertex in `near_vertices` within a median edge. `packed`: each face vertex's packed
+    /// number (None outside the patch). Empty before the first solve.
+    pub fn kept_faces(&self, packed: &[Option<u32>], faces: &[[u32; 3]]) -> Vec<bool> {
+        if self.last.is_empty() {
+            return Vec::new();
+        }
+        let near = self.near_vertices(self.surface.median_edge);
+        let near = |v: u32| packed[v as usize].is_some_and(|i| near.contains(&i));
+        faces.iter().map(|t| t.iter().any(|&v| near(v))).collect()
+    }
+
     /// The vertices of every pair whose boxes come within the list's reach plus `extra` of each
     /// other at the end of the last solve (none before it): where a remesh must keep the surface's shape
     /// (`mesh::remesh::FaceRules::kept`).

@@ -56,14 +56,10 @@ impl Bound {
     /// The largest fraction in [0, 1] of moving vertex v by `step` from `x` that keeps it within
     /// reach of its start and that no pair crosses.
     fn vertex(&self, x: &[DVec3], v: usize, step: DVec3) -> f64 {
-        let (c, ss) = (x[v] - self.at[v], step.length_squared());
-        if ss == 0.0 {
+        if step == DVec3::ZERO {
             return 1.0;
         }
-        // (|c + a step| = reach, the positive root; |c| <= reach)
-        let cs = c.dot(step);
-        let within = (-cs + (cs * cs - ss * (c.length_squared() - self.reach * self.reach)).max(0.0).sqrt()) / ss;
-        let mut alpha = within.min(1.0);
+        let mut alpha = self.within(x, v, step).min(1.0);
         for &i in &self.of[v] {
             let p = &self.pairs[i as usize];
             let d: [[f64; 3]; 4] = p.v.map(|u| if u as usize == v { step.to_array() } else { [0.0; 3] });
@@ -74,14 +70,19 @@ impl Bound {
         alpha.max(0.0)
     }
 
+    /// The largest a with x[v] + a step within reach of v's start: the positive root of
+    /// |c + a step| = reach, c = x[v] - start (|c| <= reach). `step` is not zero.
+    fn within(&self, x: &[DVec3], v: usize, step: DVec3) -> f64 {
+        let (c, ss) = (x[v] - self.at[v], step.length_squared());
+        let cs = c.dot(step);
+        (-cs + (cs * cs - ss * (c.length_squared() - self.reach * self.reach)).max(0.0).sqrt()) / ss
+    }
+
     /// The same for moving every vertex by `d` at once.
     fn all(&self, x: &[DVec3], d: &[DVec3]) -> f64 {
         let mut alpha = 1.0f64;
         for (v, step) in d.iter().enumerate().filter(|(_, s)| **s != DVec3::ZERO) {
-            let (c, ss) = (x[v] - self.at[v], step.length_squared());
-            let cs = c.dot(*step);
-            let within = (-cs + (cs * cs - ss * (c.length_squared() - self.reach * self.reach)).max(0.0).sqrt()) / ss;
-            alpha = alpha.min(within);
+            alpha = alpha.min(self.within(x, v, *step));
         }
         alpha.min(ContactState::step_bound(&self.pairs, x, d)).max(0.0)
     }
