@@ -20,7 +20,7 @@ use super::contact;
 use super::error::{Quantity, SolveError, PINCH_ITERATIONS, PINCH_STEP};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
-    correction, evaluate, search_step, step, FrameOutcome, FrameStart, Search, ARMIJO, MAX_ESCAPES, ROUND_OFF,
+    correction, evaluate, search_step, step, timed, FrameOutcome, FrameStart, Search, ARMIJO, MAX_ESCAPES, ROUND_OFF,
 };
 use super::kkt::{KktPoint, KktSystem};
 use super::linear::symmetric_product_into;
@@ -73,14 +73,15 @@ pub(super) fn newton_kkt(
     let mut pinched = 0;
     let result = loop {
         let filter = progress.filter();
-        if std::mem::take(&mut relisted) && contact::fit(packed, pattern) {
+        let ms = &mut out.counters.contact_ms;
+        if std::mem::take(&mut relisted) && timed(ms, || contact::fit(packed, pattern)) {
             let count = kkt.factorizations;
-            *kkt = KktSystem::build(pattern, &constraints, settings.kkt);
+            *kkt = timed(ms, || KktSystem::build(pattern, &constraints, settings.kkt));
             (kkt.factorizations, kkt.held) = (count, held);
             values.resize(pattern.nnz(), 0.0);
         }
         let mut assembly = evaluate(packed, pattern, filter, inertia.as_ref(), &mut grad, &mut values, &mut out);
-        if contact::stiffen(packed, pattern, &grad, &values) {
+        if timed(&mut out.counters.contact_ms, || contact::stiffen(packed, pattern, &grad, &values)) {
             assembly = evaluate(packed, pattern, filter, inertia.as_ref(), &mut grad, &mut values, &mut out);
         }
         let Assembly { parts, force_scale } = assembly;
@@ -226,7 +227,7 @@ pub(super) fn newton_kkt(
             continue;
         }
         let tolerance = settings.tolerance;
-        let first = contact::bound_step(packed, pattern, &dx);
+        let first = timed(&mut out.counters.contact_ms, || contact::bound_step(packed, pattern, &dx));
         relisted |= contact;
         let search = Search { dx: &dx, slope: merit_slope, phi: phi_merit, residual, energy_scale, tolerance, first };
         let Some(alpha) = search_step(packed, pattern, search, &merit, &mut out) else {

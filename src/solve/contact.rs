@@ -232,6 +232,7 @@ pub(super) fn continuation(
     let mut total = FrameOutcome::default();
     let mut first = true;
     loop {
+        let clock = std::time::Instant::now();
         let x = packed.state.x.clone();
         let goal = if first { target.clone() } else { target_with_free(&target, &x, &packed.state.fixed) };
         first = false;
@@ -261,6 +262,7 @@ pub(super) fn continuation(
         if fit(packed, pattern) {
             solver.reanalyse(packed, pattern, settings);
         }
+        total.counters.contact_ms += clock.elapsed().as_secs_f64() * 1e3;
         let out = solver.solve(packed, pattern, settings, dt)?;
         total.absorb(out);
         let state = packed.contact.as_mut().expect("a patch with contact");

@@ -63,7 +63,7 @@ pub struct FrameOutcome {
     pub merits: Vec<f64>,
     /// Wall time inside the solve (ms): element evaluation and assembly, numeric
     /// factorization and triangular solves (with their f32 refinement), line-search energy
-    /// evaluations, the stability test.
+    /// evaluations, the stability test, contact's broad phases and collision bounds.
     #[serde(rename = "solve_breakdown_ms")]
     pub counters: SolveCounters,
 }
@@ -88,6 +88,7 @@ impl FrameOutcome {
                 factorize_ms: self.counters.factorize_ms + next.counters.factorize_ms,
                 line_search_ms: self.counters.line_search_ms + next.counters.line_search_ms,
                 stability_ms: self.counters.stability_ms + next.counters.stability_ms,
+                contact_ms: self.counters.contact_ms + next.counters.contact_ms,
             },
             ..next
         };
@@ -106,6 +107,17 @@ pub struct SolveCounters {
     pub line_search_ms: f64,
     /// The stability test at converged points: its factorizations, eigen-solve and escape search.
     pub stability_ms: f64,
+    /// Contact's work besides the energy: broad phases, the collision bound on each step, the
+    /// pair list's scatter maps (or a new pattern and its analysis), the barrier stiffness.
+    pub contact_ms: f64,
+}
+
+/// Runs `f`, adding its wall time to `ms`.
+pub(super) fn timed<T>(ms: &mut f64, f: impl FnOnce() -> T) -> T {
+    let clock = std::time::Instant::now();
+    let out = f();
+    *ms += clock.elapsed().as_secs_f64() * 1e3;
+    out
 }
 
 /// The implicit-Euler predictor x_n + h v_n (prescribed coordinates stay); empty when quasistatic.

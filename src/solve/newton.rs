@@ -8,7 +8,7 @@ use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
     evaluate, factorize_shifted, line_search, mean_abs_diagonal, step, symmetric_product, symmetric_product_into,
-    FrameOutcome, FrameStart, Search, MAX_ESCAPES, ROUND_OFF,
+    timed, FrameOutcome, FrameStart, Search, MAX_ESCAPES, ROUND_OFF,
 };
 use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
@@ -49,13 +49,16 @@ pub(super) fn newton(
 
     loop {
         let filter = it.progress.filter();
-        if std::mem::take(&mut it.relisted) && contact::fit(packed, pattern) {
-            contact::reanalyse(chol, pattern, settings);
+        let ms = &mut it.out.counters.contact_ms;
+        if std::mem::take(&mut it.relisted) && timed(ms, || contact::fit(packed, pattern)) {
+            timed(ms, || contact::reanalyse(chol, pattern, settings));
             it.values.resize(pattern.nnz(), 0.0);
         }
         let mut assembly =
             evaluate(packed, pattern, filter, inertia.as_ref(), &mut it.grad, &mut it.values, &mut it.out);
-        if contact::stiffen(packed, pattern, &it.grad, &it.values) {
+        let stiffened =
+            timed(&mut it.out.counters.contact_ms, || contact::stiffen(packed, pattern, &it.grad, &it.values));
+        if stiffened {
             assembly = evaluate(packed, pattern, filter, inertia.as_ref(), &mut it.grad, &mut it.values, &mut it.out);
         }
         let Assembly { parts, force_scale } = assembly;
@@ -147,7 +150,7 @@ impl Loop {
     ) -> bool {
         let slope: f64 = self.dx.iter().zip(&self.grad).map(|(a, b)| a * b).sum();
         let (phi, residual, scale, tol) = (at.phi, at.residual, self.energy_scale, settings.tolerance);
-        let first = contact::bound_step(packed, pattern, &self.dx);
+        let first = timed(&mut self.out.counters.contact_ms, || contact::bound_step(packed, pattern, &self.dx));
         self.relisted |= packed.contact.is_some();
         let search = Search { dx: &self.dx, slope, phi, residual, energy_scale: scale, tolerance: tol, first };
         line_search(packed, pattern, search, total, &mut self.out)
