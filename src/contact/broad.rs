@@ -1,6 +1,7 @@
-//! The broad phase: pairs whose primitives' bounding boxes, grown by a radius, overlap, from
-//! parry's BVH over the triangles and over the edges. At one state (the pairs that may be
-//! active) or over a step from one state to another (the pairs CCD must bound).
+//! The broad phase: pairs within a reach of each other, from parry's BVH over the triangles and
+//! over the edges (boxes grown by the reach), then each pair's distance. At one state (the
+//! pairs that may be active) or over a step from one state to another (the pairs CCD must
+//! bound).
 
 use glam::DVec3;
 use parry3d_f64::bounding_volume::Aabb;
@@ -53,21 +54,25 @@ pub(super) fn overlaps(s: &Surface, x: &[DVec3], r: f64) -> (Vec<Vec<u32>>, Vec<
     (points, later)
 }
 
-/// Every admitted pair (`Surface::admits`) whose boxes, at `x` or swept from `x` to `x1`, come
-/// within `r` of each other: point-triangle pairs first, then edge-edge, each in index order.
-pub fn candidates(s: &Surface, x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Vec<Pair> {
+/// Every admitted pair (`Surface::admits`) that comes within its offset plus `beyond` at `x`,
+/// or anywhere on the straight step from `x` to `x1` (`near`): point-triangle pairs first, then
+/// edge-edge, each in index order. The trees' boxes are grown by the largest offset plus
+/// `beyond`; each pair found is then held to its own reach.
+pub fn candidates(s: &Surface, x: &[DVec3], x1: Option<&[DVec3]>, beyond: f64) -> Vec<Pair> {
     if s.is_empty() {
         return Vec::new();
     }
+    let r = s.max_offset() + beyond;
     let tri_boxes: Vec<Aabb> = s.triangles.par_iter().map(|t| aabb(t, x, x1, r)).collect();
     let tris = Bvh::from_leaves(BvhBuildStrategy::default(), &tri_boxes);
+    let near = |p: &Pair| near(p, x, x1, beyond);
     let mut pairs: Vec<Pair> = (0..s.points.len())
         .into_par_iter()
         .flat_map_iter(|p| {
             let query = aabb(&[s.points[p]], x, x1, 0.0);
             let mut found: Vec<u32> = tris.intersect_aabb(&query).collect();
             found.sort_unstable();
-            found.into_iter().filter_map(move |t| s.point_triangle(p, t as usize))
+            found.into_iter().filter_map(move |t| s.point_triangle(p, t as usize)).filter(near)
         })
         .collect();
     // (each edge box grown by r / 2: two boxes within r of each other overlap)
@@ -76,21 +81,37 @@ pub fn candidates(s: &Surface, x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Vec
     pairs.par_extend((0..s.edges.len()).into_par_iter().flat_map_iter(|i| {
         let mut found: Vec<u32> = edges.intersect_aabb(&edge_boxes[i]).filter(|&j| j as usize > i).collect();
         found.sort_unstable();
-        found.into_iter().filter_map(move |j| s.edge_edge(i, j as usize))
+        found.into_iter().filter_map(move |j| s.edge_edge(i, j as usize)).filter(near)
     }));
     pairs
 }
 
-/// The pairs of `pairs` (a wider list, in its order) that `candidates` would find at `x` or
-/// over the step to `x1` with reach `r`: the same boxes, the same test.
-pub fn filtered(pairs: &[Pair], x: &[DVec3], x1: Option<&[DVec3]>, r: f64) -> Vec<Pair> {
+/// The pairs of `pairs` (a wider list, in its order) that come within their offset plus
+/// `beyond` at `x` or on the step to `x1` (`near`).
+pub fn filtered(pairs: &[Pair], x: &[DVec3], x1: Option<&[DVec3]>, beyond: f64) -> Vec<Pair> {
+    pairs.par_iter().filter(|p| near(p, x, x1, beyond)).copied().collect()
+}
+
+/// Whether the pair may come within its offset plus `beyond` (its reach) at `x` or on the
+/// straight step to `x1`: its boxes, swept over the step, come within the reach of each other,
+/// and its distance at `x`, less the most the step can shrink it (`ccd::relative_motion`), is
+/// below the reach. A pair left out stays beyond its reach all along the step. (On a sheet,
+/// most pairs whose boxes overlap are a triangle's width apart, farther than the reach.)
+pub fn near(p: &Pair, x: &[DVec3], x1: Option<&[DVec3]>, beyond: f64) -> bool {
     use parry3d_f64::bounding_volume::BoundingVolume;
-    pairs
-        .par_iter()
-        .filter(|p| match p.kind {
-            Primitives::PointTriangle => aabb(&p.v[..1], x, x1, 0.0).intersects(&aabb(&p.v[1..], x, x1, r)),
-            Primitives::EdgeEdge => aabb(&p.v[..2], x, x1, 0.5 * r).intersects(&aabb(&p.v[2..], x, x1, 0.5 * r)),
-        })
-        .copied()
-        .collect()
+    let reach = p.barrier.offset + beyond;
+    let boxes = match p.kind {
+        Primitives::PointTriangle => aabb(&p.v[..1], x, x1, 0.0).intersects(&aabb(&p.v[1..], x, x1, reach)),
+        Primitives::EdgeEdge => aabb(&p.v[..2], x, x1, 0.5 * reach).intersects(&aabb(&p.v[2..], x, x1, 0.5 * reach)),
+    };
+    if !boxes {
+        return false;
+    }
+    let y = super::gather(x, &p.v);
+    let shrink = x1.map_or(0.0, |x1| {
+        let d = std::array::from_fn(|i| (x1[p.v[i] as usize] - x[p.v[i] as usize]).to_array());
+        super::ccd::relative_motion(p.kind, &d).1
+    });
+    let r = reach + shrink;
+    super::distance::box_gap_squared(p.kind, &y) < r * r && p.squared_distance(&y) < r * r
 }

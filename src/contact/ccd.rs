@@ -7,13 +7,10 @@
 
 use super::distance::{squared_distance, Primitives};
 
-/// The time in (0, t_max] at which the pair's gap has first shrunk below `s` times its start
-/// (s = 0.1: the step keeps a tenth of the gap), or None if it stays above that through t_max.
-/// `x`: positions at t = 0; `dx`: displacements over t in [0, 1]; `offset`: the thickness xi.
-pub fn additive_toi(kind: Primitives, x: &[[f64; 3]; 4], dx: &[[f64; 3]; 4], offset: f64, t_max: f64) -> Option<f64> {
-    const S: f64 = 0.1;
-    const MAX_STEPS: u32 = 100_000;
-    // Relative motion: remove the mean displacement.
+/// The pair's displacements less their mean (distance is blind to a common translation), and
+/// l_p: the most the pair's distance can shrink over the step (its two primitives' largest
+/// relative displacements, summed).
+pub fn relative_motion(kind: Primitives, dx: &[[f64; 3]; 4]) -> ([[f64; 3]; 4], f64) {
     let mean: [f64; 3] = std::array::from_fn(|k| dx.iter().map(|d| d[k]).sum::<f64>() / 4.0);
     let p: [[f64; 3]; 4] = std::array::from_fn(|i| std::array::from_fn(|k| dx[i][k] - mean[k]));
     let norm = |v: &[f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -21,6 +18,16 @@ pub fn additive_toi(kind: Primitives, x: &[[f64; 3]; 4], dx: &[[f64; 3]; 4], off
         Primitives::PointTriangle => norm(&p[0]) + norm(&p[1]).max(norm(&p[2])).max(norm(&p[3])),
         Primitives::EdgeEdge => norm(&p[0]).max(norm(&p[1])) + norm(&p[2]).max(norm(&p[3])),
     };
+    (p, l_p)
+}
+
+/// The time in (0, t_max] at which the pair's gap has first shrunk below `s` times its start
+/// (s = 0.1: the step keeps a tenth of the gap), or None if it stays above that through t_max.
+/// `x`: positions at t = 0; `dx`: displacements over t in [0, 1]; `offset`: the thickness xi.
+pub fn additive_toi(kind: Primitives, x: &[[f64; 3]; 4], dx: &[[f64; 3]; 4], offset: f64, t_max: f64) -> Option<f64> {
+    const S: f64 = 0.1;
+    const MAX_STEPS: u32 = 100_000;
+    let (p, l_p) = relative_motion(kind, dx);
     if l_p == 0.0 {
         return None;
     }

@@ -80,10 +80,11 @@ pub struct ContactState {
     /// no pair it left out can come within offset + d_hat (a Verlet list's rule), and its
     /// list still holds every pair that can be active or crossed.
     pub listed_at: Vec<DVec3>,
-    /// A wider list for the broad phase (`pairs_near`): the admitted pairs whose boxes came
-    /// within the list's reach plus `WIDE` list reaches at `wide_at`. While every vertex
-    /// stays within half of that extra reach of `wide_at`, a broad phase filters it instead of
-    /// building the trees, and finds the same pairs in the same order.
+    /// A wider list for the broad phase (`pairs_near`): the admitted pairs within their list
+    /// reach plus an extra reach of each other at `wide_at`. While every vertex stays within
+    /// half of that extra reach of `wide_at`, at both ends of a step (so along it too), every
+    /// pair that comes within its list reach is in it, and a broad phase filters it instead of
+    /// building the trees.
     pub wide: Vec<Pair>,
     pub wide_at: Vec<DVec3>,
     /// Which kernels the last frame released (`solve::release`).
@@ -150,7 +151,12 @@ impl ContactState {
 
     /// The reach of the pair list: the largest offset + d_hat + margin.
     pub fn list_reach(&self) -> f64 {
-        self.surface.max_offset() + self.surface.reach + self.margin
+        self.surface.max_offset() + self.beyond()
+    }
+
+    /// How far beyond its offset a pair is listed: d_hat + margin.
+    fn beyond(&self) -> f64 {
+        self.surface.reach + self.margin
     }
 
     /// Pairs near `x` (or near the step from `x` to `x1`) with a free coordinate (two held
@@ -159,8 +165,7 @@ impl ContactState {
     pub fn pairs_near(&mut self, x: &[DVec3], x1: Option<&[DVec3]>, fixed: &[[bool; 3]]) -> Vec<Pair> {
         self.report.broad_phases += 1;
         self.listed_at = x.to_vec();
-        let reach = self.list_reach();
-        let extra = (WIDE * reach).min(WIDE_EDGE * self.surface.median_edge);
+        let extra = (WIDE * self.list_reach()).min(WIDE_EDGE * self.surface.median_edge);
         let within = |at: &[DVec3]| {
             let r2 = (0.5 * extra).powi(2);
             at.len() == self.wide_at.len() && at.iter().zip(&self.wide_at).all(|(a, c)| a.distance_squared(*c) <= r2)
@@ -170,10 +175,10 @@ impl ContactState {
                 // (a step longer than the extra reach: straight to the trees)
                 return self.free_pairs(x, x1, fixed);
             }
-            self.wide = broad::candidates(&self.surface, x, None, reach + extra);
+            self.wide = broad::candidates(&self.surface, x, None, self.beyond() + extra);
             self.wide_at = x.to_vec();
         }
-        let mut pairs = broad::filtered(&self.wide, x, x1, reach);
+        let mut pairs = broad::filtered(&self.wide, x, x1, self.beyond());
         pairs.retain(|p| p.v.iter().any(|&v| fixed[v as usize] != [true; 3]));
         pairs
     }
@@ -190,14 +195,14 @@ impl ContactState {
         faces.iter().map(|t| t.iter().any(|&v| near(v))).collect()
     }
 
-    /// The vertices of every pair whose boxes come within the list's reach plus `extra` of each
-    /// other at the end of the last solve (none before it): where a remesh must keep the surface's shape
+    /// The vertices of every pair within its list reach plus `extra` (`broad::near`) at the end
+    /// of the last solve (none before it): where a remesh must keep the surface's shape
     /// (`mesh::remesh::FaceRules::kept`).
     pub fn near_vertices(&self, extra: f64) -> std::collections::BTreeSet<u32> {
         if self.last.is_empty() {
             return Default::default();
         }
-        broad::candidates(&self.surface, &self.last, None, self.list_reach() + extra)
+        broad::candidates(&self.surface, &self.last, None, self.beyond() + extra)
             .into_iter()
             .flat_map(|p| p.v)
             .collect()
@@ -205,7 +210,7 @@ impl ContactState {
 
     /// The same pairs, neither counted nor kept as the list (a one-off check).
     pub fn free_pairs(&self, x: &[DVec3], x1: Option<&[DVec3]>, fixed: &[[bool; 3]]) -> Vec<Pair> {
-        let mut pairs = broad::candidates(&self.surface, x, x1, self.list_reach());
+        let mut pairs = broad::candidates(&self.surface, x, x1, self.beyond());
         pairs.retain(|p| p.v.iter().any(|&v| fixed[v as usize] != [true; 3]));
         pairs
     }
