@@ -205,6 +205,9 @@ pub(super) fn clear_path(packed: &PackedPatch, from: &[DVec3], to: &[DVec3]) -> 
 /// Most solves in one frame (`continuation`).
 const MAX_SUBSTEPS: u32 = 64;
 
+/// The relative residual a substep short of the frame's targets is solved to (`continuation`).
+const SUBSTEP_TOLERANCE: f64 = 1e-4;
+
 /// A frame's solve with contact. Prescribed coordinates (a body in the patch, held skin) jump to
 /// their targets between frames, and free ones to Newton's first guess; a jump may pass through
 /// the skin. Everything moves instead from where the last solve left it, as far towards the
@@ -263,7 +266,14 @@ pub(super) fn continuation(
             solver.reanalyse(packed, pattern, settings);
         }
         total.counters.contact_ms += clock.elapsed().as_secs_f64() * 1e3;
-        let out = solver.solve(packed, pattern, settings, dt)?;
+        // A substep short of the targets only clears the way for the next: solved loosely and
+        // not tested for stability (the last one is, at the patch's own settings).
+        let loose = SolverSettings {
+            tolerance: settings.tolerance.max(SUBSTEP_TOLERANCE),
+            stability_check: false,
+            ..settings.clone()
+        };
+        let out = solver.solve(packed, pattern, if alpha < 1.0 { &loose } else { settings }, dt)?;
         total.absorb(out);
         let state = packed.contact.as_mut().expect("a patch with contact");
         if alpha >= 1.0 {
