@@ -205,7 +205,10 @@ pub(super) fn clear_path(packed: &PackedPatch, from: &[DVec3], to: &[DVec3]) -> 
 /// Most solves in one frame (`continuation`).
 const MAX_SUBSTEPS: u32 = 64;
 
-/// The relative residual a substep short of the frame's targets is solved to (`continuation`).
+/// The relative residual a substep short of the frame's targets is solved to (`continuation`),
+/// or to where it stalls within the progress test's band of it (`progress::Progress::record`:
+/// 1000 times). The creature's frame 3 ended its first substep so at 0.045; holding that band
+/// at the patch's own (1e-3) took 136 iterations over the run against 134, in the same time.
 const SUBSTEP_TOLERANCE: f64 = 1e-4;
 
 /// A frame's solve with contact. Prescribed coordinates (a body in the patch, held skin) jump to
