@@ -445,7 +445,7 @@ fn the_wide_list_finds_what_the_trees_find() {
         // every pair that comes within its list reach somewhere along it.
         let (wide, trees) =
             (keys(&state.pairs_near(&x, Some(&x1), &fixed)), keys(&state.free_pairs(&x, Some(&x1), &fixed)));
-        let beyond = state.list_reach() - state.surface.max_offset();
+        let beyond = state.beyond();
         let along: Vec<Vec<DVec3>> =
             (0..=32).map(|k| x.iter().zip(&x1).map(|(a, b)| *a + k as f64 / 32.0 * (*b - *a)).collect()).collect();
         // (a pair that comes within its reach along the step is within it plus twice the

@@ -271,12 +271,12 @@ pub(super) fn continuation(
         total.counters.contact_ms += clock.elapsed().as_secs_f64() * 1e3;
         // A substep short of the targets only clears the way for the next: solved loosely and
         // not tested for stability (the last one is, at the patch's own settings).
-        let loose = SolverSettings {
+        let loose = (alpha < 1.0).then(|| SolverSettings {
             tolerance: settings.tolerance.max(SUBSTEP_TOLERANCE),
             stability_check: false,
             ..settings.clone()
-        };
-        let out = solver.solve(packed, pattern, if alpha < 1.0 { &loose } else { settings }, dt)?;
+        });
+        let out = solver.solve(packed, pattern, loose.as_ref().unwrap_or(settings), dt)?;
         total.absorb(out);
         let state = packed.contact.as_mut().expect("a patch with contact");
         if alpha >= 1.0 {
