@@ -152,8 +152,12 @@ impl Pattern {
 
     /// Whether every coupling of a stencil's vertices is an entry (its symbolic analysis holds).
     pub(crate) fn covers_stencil(&self, v: &[u32]) -> bool {
-        let dofs: Vec<u32> = v.iter().flat_map(|&a| (0..3).map(move |i| self.dof[3 * a as usize + i])).collect();
-        dofs.iter().all(|&da| dofs.iter().all(|&db| da == NONE || db == NONE || self.position_of(da, db).is_some()))
+        // (the entries are symmetric: the lower triangle, diagonal included, settles it)
+        let dof = |p: usize| self.dof[3 * v[p / 3] as usize + p % 3];
+        (0..3 * v.len()).all(|p| {
+            let dp = dof(p);
+            dp == NONE || (0..=p).all(|q| dof(q) == NONE || self.position_of(dp, dof(q)).is_some())
+        })
     }
 
     /// Position of the (symmetric) entry of DOFs a and b, None outside the pattern.
@@ -208,5 +212,56 @@ impl Pattern {
 
     pub fn nnz(&self) -> usize {
         self.row_idx.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::solve::{Elements, SpringElem};
+
+    /// `covers_stencil` (the lower triangle of a stencil's DOF pairs) against every ordered
+    /// pair of its free DOFs, on a chain of springs whose first four vertices are all coupled,
+    /// with some coordinates held, for every four distinct vertices.
+    #[test]
+    fn a_stencil_is_covered_when_all_its_free_pairs_are_in_the_pattern() {
+        let n = 7u32;
+        let x: Vec<DVec3> = (0..n).map(|i| DVec3::new(f64::from(i), 0.0, 0.0)).collect();
+        let springs = (0..n - 1)
+            .map(|i| SpringElem { v: [i, i + 1], k: 1.0 })
+            .chain([[0, 2], [0, 3], [1, 3]].map(|v| SpringElem { v, k: 1.0 }));
+        let mut fixed = vec![[false; 3]; n as usize];
+        fixed[2] = [true, false, true];
+        fixed[5] = [true; 3];
+        let p = Pattern::build(&x, &fixed, &[], &Elements { springs: springs.collect(), ..Default::default() });
+        let (mut covered, mut not) = (0, 0);
+        for a in 0..n {
+            for b in 0..n {
+                for c in 0..n {
+                    for d in 0..n {
+                        let v = [a, b, c, d];
+                        if (0..4).any(|i| (0..i).any(|j| v[i] == v[j])) {
+                            continue;
+                        }
+                        let dofs: Vec<u32> = v
+                            .iter()
+                            .flat_map(|&w| (0..3).map(move |k| 3 * w as usize + k))
+                            .map(|i| p.dof[i])
+                            .filter(|&d| d != NONE)
+                            .collect();
+                        let brute = dofs.iter().all(|&i| dofs.iter().all(|&j| p.position_of(i, j).is_some()));
+                        assert_eq!(p.covers_stencil(&v), brute, "{v:?}");
+                        if brute {
+                            covered += 1;
+                        } else {
+                            not += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(covered > 0 && not > 0, "both outcomes met: {covered} covered, {not} not");
     }
 }
