@@ -63,6 +63,17 @@ fn edges_of(faces: &[[u32; 3]]) -> Vec<[u32; 2]> {
 /// are not neighbours at rest (their rest distance is above `apart`): all pairs, culled only by
 /// their bounding boxes' distance, up to CAP.
 fn closest_approach(x: &[DVec3], rest: &[DVec3], faces: &[[u32; 3]], apart: f64) -> f64 {
+    // (`x` and `rest` must number the vertices alike, as `layer_mesh` and the mesh's rest do:
+    // `layer_surface` numbers them in first use, and the rule "apart at rest" then reads other
+    // vertices' rest positions. The faces' longest edges at rest and now agree within 2x in
+    // the median; numbered apart, they were 10x on the quick creature.)
+    let longest = |y: &[DVec3], f: &[u32; 3]| {
+        (0..3).map(|k| y[f[k] as usize].distance(y[f[(k + 1) % 3] as usize])).fold(0.0, f64::max)
+    };
+    let mut ratios: Vec<f64> = faces.iter().map(|f| longest(rest, f) / longest(x, f)).collect();
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios.get(ratios.len() / 2).copied().unwrap_or(1.0);
+    assert!((0.5..2.0).contains(&median), "positions and rest numbered alike: median edge ratio {median}");
     let edges = edges_of(faces);
     let at = |y: &[DVec3], f: &[u32; 3]| f.map(|v| y[v as usize]);
     let seg = |y: &[DVec3], e: &[u32; 2]| e.map(|v| y[v as usize]);
@@ -165,7 +176,7 @@ fn a_strip_folded_onto_itself_never_passes_through() {
     // (pairs within 1.5 mm at rest are neighbours on the strip, 1 mm cells: not its plies)
     let apart = 1.5e-3;
     let measure = |sim: &mut Simulation, _: &FrameStats| {
-        let (_, x, faces) = sim.layer_surface("strip", "strip");
+        let (_, x, faces) = sim.layer_mesh("strip", "strip");
         (x, faces)
     };
     let rest_of =
@@ -485,7 +496,7 @@ fn the_creature_skin_folds_without_passing_through() {
         let c = s.patches[0].outcome.contact.expect("a contact report");
         most = most.max(c.active_pairs);
         assert!(s.patches[0].outcome.converged && c.min_distance_ratio > 1.0, "frame {frame}: {c:?}");
-        let (_, x, faces) = sim.layer_surface("creature", "skin");
+        let (_, x, faces) = sim.layer_mesh("creature", "skin");
         assert!(crossing_pairs(&faces, &x).is_empty(), "frame {frame}: crossing faces");
         let (_, xb, fb) = sim.layer_surface("creature", "body");
         body_crossed += usize::from(!crossing_pairs(&fb, &xb).is_empty());
@@ -521,7 +532,7 @@ fn lk14_skin_over_a_joint_that_folds_through_itself_never_crosses() {
         let c = s.patches[0].outcome.contact.expect("a contact report");
         assert!(s.patches[0].outcome.converged, "frame {frame}: {} iterations", s.patches[0].outcome.iterations);
         released = released.max(c.released_kernels);
-        let (_, x, faces) = sim.layer_surface("finger", "skin");
+        let (_, x, faces) = sim.layer_mesh("finger", "skin");
         assert!(crossing_pairs(&faces, &x).is_empty(), "frame {frame}: the skin crosses itself");
         let (_, xb, fb) = sim.layer_surface("finger", "bone");
         body_crossed += usize::from(!crossing_pairs(&fb, &xb).is_empty());
@@ -608,7 +619,7 @@ fn elbow_with_contact(rel: &str) {
     let rest = scene.patches[0].layers[1].mesh.rest().to_vec();
     let measure = |sim: &mut Simulation, s: &FrameStats| {
         let released = s.patches[0].outcome.contact.expect("a contact report").released_kernels;
-        let (_, x, faces) = sim.layer_surface("inner_elbow", "skin");
+        let (_, x, faces) = sim.layer_mesh("inner_elbow", "skin");
         // (neighbours within 0.2 mm at rest are excluded: the edges are 0.6-2.8 mm)
         let closest = closest_approach(&x, &rest, &faces, 0.2e-3);
         let (_, xb, fb) = sim.layer_surface("inner_elbow", "surface");
