@@ -93,6 +93,9 @@ pub struct ContactState {
     /// the pattern it was made in (`Pattern::stamp`; `solve::contact::fit`).
     pub mapped: Vec<([u32; 4], bool)>,
     pub mapped_for: u64,
+    /// The map before the last (`solve::contact::remap` writes the next one into it: its pages
+    /// are already there).
+    pub spare_map: Vec<u32>,
     /// The released kernels' spring stiffness (N/m; 0 until first needed: `solve::contact::stiffen`).
     pub kernel_spring: f64,
     /// The kinematic layers that kernels bind skin to, as one surface whose pairs are the
