@@ -7,6 +7,18 @@ use skinsim::model::*;
 use crate::layer_arrays::LayerArrays;
 use crate::Simulation;
 
+/// A surface layer at the current frame (`Simulation::layer_snapshot`).
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceSnapshot {
+    /// Material positions (m).
+    pub uv: Vec<glam::DVec2>,
+    /// The asset's own UVs, where every vertex has them.
+    pub asset_uv: Option<Vec<glam::DVec2>>,
+    pub pos: Vec<glam::DVec3>,
+    pub rest: Vec<glam::DVec3>,
+    pub faces: Vec<[u32; 3]>,
+}
+
 impl Simulation {
     /// A shell layer's own triangle mesh: material positions, positions, faces (indices into
     /// the first two). Empty for an unknown layer.
@@ -66,6 +78,36 @@ impl Simulation {
             })
             .collect();
         (uv, pos, faces)
+    }
+
+    /// `layer_surface` with, in the same numbering, the rest positions and the asset's own UVs
+    /// where every vertex has them (a character's layers).
+    pub fn layer_snapshot(&mut self, patch: &str, layer: &str) -> SurfaceSnapshot {
+        let Some(l) = self.find_layer(patch, layer) else { return Default::default() };
+        let Some(faces) = self.world.get::<LayerFaces>(l) else { return Default::default() };
+        let tris: Vec<[Entity; 3]> =
+            faces.entities().iter().filter_map(|&f| self.world.get::<FaceVerts>(f)).map(|f| f.0).collect();
+        let mut index = std::collections::HashMap::new();
+        let mut order = Vec::new();
+        let faces = tris
+            .iter()
+            .map(|t| {
+                t.map(|e| {
+                    *index.entry(e).or_insert_with(|| {
+                        order.push(e);
+                        (order.len() - 1) as u32
+                    })
+                })
+            })
+            .collect();
+        let w = &self.world;
+        SurfaceSnapshot {
+            uv: order.iter().map(|&e| w.get::<MaterialPos>(e).map_or(glam::DVec2::ZERO, |m| m.0)).collect(),
+            asset_uv: order.iter().map(|&e| w.get::<AssetUv>(e).map(|u| u.0)).collect(),
+            pos: order.iter().map(|&e| w.get::<Position>(e).map_or(glam::DVec3::ZERO, |p| p.0)).collect(),
+            rest: order.iter().map(|&e| w.get::<RestPos>(e).map_or(glam::DVec3::ZERO, |p| p.0)).collect(),
+            faces,
+        }
     }
 
     /// The names of every patch's layers, bottom to top, with their kinds.

@@ -12,7 +12,7 @@ use skinsim::mesh::shading::{self, ColourBy};
 use skinsim::mesh::usd::{LayerFrame, UsdStage};
 use skinsim::model::*;
 
-use crate::log_mesh::{log_material_mesh, log_mesh};
+use crate::log_mesh::{log_material_mesh, log_mesh, Drawing};
 use crate::render_mesh::{render_mesh, RenderMesh};
 
 /// Where Rerun data goes (a file, a spawned viewer, a connection, or memory in tests).
@@ -21,10 +21,13 @@ pub struct RerunSink(pub rerun::RecordingStream);
 
 /// The entity the colour legend is logged to (a text document).
 pub const LEGEND: &str = "legend";
+/// The entity of the colour bar (an image: red at minus the scale, white at 0, blue at plus).
+pub const COLOUR_BAR: &str = "colour_bar";
 
-/// What the layers' colours show (strain when absent).
+/// What the layers' colours show (strain when absent), and the curvature (1/m) or height (m)
+/// that saturates them for the whole run (None: the first solved frame's, then fixed).
 #[derive(Resource, Clone, Copy, Debug, Default)]
-pub struct Colouring(pub ColourBy);
+pub struct Colouring(pub ColourBy, pub Option<f64>);
 
 /// Write obj/<patch>/<layer>/<frame>.obj under this directory.
 #[derive(Resource, Clone, Debug)]
@@ -38,11 +41,25 @@ pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>, 
     sink.is_some() || obj.is_some() || usd.is_some()
 }
 
+/// The diverging palette from -1 (left) to +1 (right), 256 x 16 pixels.
+fn colour_bar() -> rerun::Image {
+    let (w, h) = (256u32, 16u32);
+    let row: Vec<u8> = (0..w)
+        .flat_map(|x| {
+            let c = shading::diverging_colour(2.0 * x as f64 / (w - 1) as f64 - 1.0, 1.0);
+            [c[0], c[1], c[2]]
+        })
+        .collect();
+    rerun::Image::from_rgb24(row.repeat(h as usize), [w, h])
+}
+
 #[derive(Default)]
 pub struct RenderCache {
     meshes: HashMap<Entity, RenderMesh>,
     /// The legend last logged (logged again only when it changes).
     legend: String,
+    /// Frame 0 (the rest state) is written.
+    rest_logged: bool,
 }
 
 type LayerQ<'a> = (&'a Layer, &'a TopologyEpoch, Option<&'a LayerFaces>, Option<&'a LayerTets>, Has<RemeshSettings>);
@@ -70,68 +87,92 @@ pub fn log_frame(
         rec.set_time_sequence("frame", clock.frame as i64);
         rec.set_duration_secs("sim_time", clock.time);
     }
-    let by = colouring.map(|c| c.0).unwrap_or_default();
+    let (by, scale) = colouring.map(|c| (c.0, c.1)).unwrap_or_default();
     let mut legend = Vec::new();
     let mut ordered: Vec<_> = patches.iter().collect();
     ordered.sort_by_key(|(p, _)| p.index);
-    for (patch, patch_layers) in ordered {
-        for (layer_index, &l) in patch_layers.entities().iter().enumerate() {
-            let Ok((layer, epoch, lf, lt, remeshed)) = layers.get(l) else { continue };
-            let rm = cache.meshes.entry(l).or_default();
-            let new_topology = rm.vertices.is_empty() || rm.epoch != epoch.0;
-            if new_topology {
-                *rm = render_mesh(epoch.0, lf, lt, &faces, &tets, &vertices);
+    // The rest state first, as frame 0, in every output: frame 1 already carries the drivers'
+    // first step and any perturbation.
+    let passes: &[bool] = if cache.rest_logged { &[false] } else { &[true, false] };
+    cache.rest_logged = true;
+    for &rest in passes {
+        let frame = if rest { 0 } else { clock.frame };
+        if let Some(rec) = rec.filter(|_| rest) {
+            rec.set_time_sequence("frame", 0);
+            rec.set_duration_secs("sim_time", 0.0);
+            if by != ColourBy::Layer {
+                let _ = rec.log_static(COLOUR_BAR, &colour_bar());
             }
-            if rm.tris.is_empty() {
-                continue;
-            }
-            let pos: Vec<DVec3> =
-                rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.0 .0).unwrap_or(DVec3::NAN)).collect();
-            let uv = |rm: &RenderMesh| -> Vec<DVec2> {
-                rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect()
-            };
-            if let Some(UsdExport(stage)) = usd.as_deref_mut() {
-                // `st`: the asset's own UVs where the layer has them (a character's), else its
-                // material coordinates.
-                let st = |rm: &RenderMesh| -> Option<Vec<DVec2>> {
-                    rm.vertices.iter().map(|e| asset_uv.get(*e).ok().map(|u| u.0)).collect()
-                };
-                let (from_asset, st) = match st(rm) {
-                    Some(st) => (true, st),
-                    None => (false, uv(rm)),
-                };
+        }
+        for (patch, patch_layers) in &ordered {
+            for (layer_index, &l) in patch_layers.entities().iter().enumerate() {
+                let Ok((layer, epoch, lf, lt, remeshed)) = layers.get(l) else { continue };
+                let rm = cache.meshes.entry(l).or_default();
+                let new_topology = rm.vertices.is_empty() || rm.epoch != epoch.0;
+                if new_topology {
+                    // (a remesh keeps the layer's colour scale: fixed for the run)
+                    let kept = (rm.colour_scale, rm.scale_sent);
+                    *rm = render_mesh(epoch.0, lf, lt, &faces, &tets, &vertices);
+                    (rm.colour_scale, rm.scale_sent) = kept;
+                }
+                if rm.tris.is_empty() {
+                    continue;
+                }
+                let at =
+                    |e: &Entity| vertices.get(*e).map(|v| if rest { v.1 .0 } else { v.0 .0 }).unwrap_or(DVec3::NAN);
+                let pos: Vec<DVec3> = rm.vertices.iter().map(at).collect();
+                let uv: Vec<DVec2> =
+                    rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
                 let normals = shading::vertex_normals(&pos, &rm.tris);
-                let f = LayerFrame {
-                    positions: &pos,
-                    normals: &normals,
-                    uv: &st,
-                    tris: &rm.tris,
-                    new_topology,
-                    asset_uv: from_asset,
-                };
-                if let Err(e) = stage.add(&patch.name, &layer.name, remeshed, clock.frame, &f) {
-                    let (file, reason) = ("the USD cache".to_string(), e.to_string());
-                    failure.0.get_or_insert(Failure::Output { file, reason });
+                if let Some(UsdExport(stage)) = usd.as_deref_mut() {
+                    // `st`: the asset's own UVs where the layer has them (a character's), else its
+                    // material coordinates in the scene's length unit (an OBJ body's `vt`).
+                    let asset: Option<Vec<DVec2>> =
+                        rm.vertices.iter().map(|e| asset_uv.get(*e).ok().map(|u| u.0)).collect();
+                    let (from_asset, st) = match asset {
+                        Some(st) => (true, st),
+                        None => (false, uv.iter().map(|u| *u / stage.st_unit()).collect()),
+                    };
+                    let f = LayerFrame {
+                        positions: &pos,
+                        normals: &normals,
+                        uv: &st,
+                        tris: &rm.tris,
+                        new_topology: new_topology || rest,
+                        asset_uv: from_asset,
+                    };
+                    if let Err(e) = stage.add(&patch.name, &layer.name, remeshed, frame, &f) {
+                        let (file, reason) = ("the USD cache".to_string(), e.to_string());
+                        failure.0.get_or_insert(Failure::Output { file, reason });
+                    }
+                }
+                if let Some(rec) = rec {
+                    let path = format!("patches/{}/{}", patch.name, layer.name);
+                    let body = layer.kind == LayerKind::Kinematic;
+                    let d = Drawing { by, layer_index, body, rest, scale };
+                    let (colours, line) = log_mesh(rec, &path, rm, &pos, remeshed, &d);
+                    if !rest {
+                        legend.extend(line.map(|line| format!("- **{}/{}**: {line}", patch.name, layer.name)));
+                    }
+                    if remeshed {
+                        log_material_mesh(rec, &format!("material/{}/{}", patch.name, layer.name), rm, &uv, &colours);
+                    }
+                }
+                if let Some(ObjExport(dir)) = obj.as_deref() {
+                    let folder = dir.join("obj").join(&patch.name).join(&layer.name);
+                    let file = folder.join(format!("{frame:05}.obj"));
+                    let res = std::fs::create_dir_all(&folder)
+                        .and_then(|_| mesh::obj::write(&file, &pos, &uv, &normals, &rm.tris));
+                    if let Err(e) = res {
+                        let (file, reason) = (file.display().to_string(), e.to_string());
+                        failure.0.get_or_insert(Failure::Output { file, reason });
+                    }
                 }
             }
-            if let Some(rec) = rec {
-                let path = format!("patches/{}/{}", patch.name, layer.name);
-                let (colours, line) = log_mesh(rec, &path, rm, &pos, remeshed, by, layer_index);
-                legend.extend(line.map(|line| format!("- **{}/{}**: {line}", patch.name, layer.name)));
-                if remeshed {
-                    log_material_mesh(rec, &format!("material/{}/{}", patch.name, layer.name), rm, &uv(rm), &colours);
-                }
-            }
-            if let Some(ObjExport(dir)) = obj.as_deref() {
-                let uv = uv(rm);
-                let folder = dir.join("obj").join(&patch.name).join(&layer.name);
-                let file = folder.join(format!("{:05}.obj", clock.frame));
-                let res = std::fs::create_dir_all(&folder).and_then(|_| mesh::obj::write(&file, &pos, &uv, &rm.tris));
-                if let Err(e) = res {
-                    let (file, reason) = (file.display().to_string(), e.to_string());
-                    failure.0.get_or_insert(Failure::Output { file, reason });
-                }
-            }
+        }
+        if let Some(rec) = rec.filter(|_| rest) {
+            rec.set_time_sequence("frame", clock.frame as i64);
+            rec.set_duration_secs("sim_time", clock.time);
         }
     }
     if let Some(rec) = rec {
@@ -145,10 +186,16 @@ pub fn log_frame(
             let _ = rec.log(format!("{base}/energy"), &rerun::Scalars::new([p.outcome.energy]));
             let _ = rec.log(format!("{base}/newton_iterations"), &rerun::Scalars::new([p.outcome.iterations as f64]));
             let _ = rec.log(format!("{base}/residual"), &rerun::Scalars::new([p.outcome.residual]));
+            // (the residual spans decades: plotted as its log10)
+            let log10 = p.outcome.residual.max(1e-300).log10();
+            let _ = rec.log(format!("{base}/log10_residual"), &rerun::Scalars::new([log10]));
         }
+        // Frame 1's timings hold the set-up (analyses, first factorizations) and would flatten
+        // the plot of the others: they go under setup_timings, out of the plot.
+        let root = if clock.frame <= 1 { "setup_timings" } else { "timings" };
         for stage in Stage::ALL {
             if stage != Stage::Log {
-                let _ = rec.log(format!("timings/{}", stage.key()), &rerun::Scalars::new([timings.get(stage)]));
+                let _ = rec.log(format!("{root}/{}", stage.key()), &rerun::Scalars::new([timings.get(stage)]));
             }
         }
     }

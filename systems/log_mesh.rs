@@ -7,7 +7,26 @@ use skinsim::mesh::shading::{self, ColourBy};
 
 use crate::render_mesh::RenderMesh;
 
-/// Logs a layer's mesh coloured as `by` asks; returns its vertex colours and its line of the
+/// The colour of a kinematic body: a neutral grey, so that no body reads as strained skin.
+const BODY_GREY: [u8; 4] = [178, 178, 178, 255];
+/// A body is drawn this fraction of its size inside its surface (along its normals), so that a
+/// skin lying on it (offset 0: a KCK18 sleeve, the creature) shows instead of z-fighting with it.
+const BODY_INSET: f64 = 2e-3;
+
+/// How one layer is drawn.
+pub(crate) struct Drawing {
+    pub by: ColourBy,
+    pub layer_index: usize,
+    /// A kinematic body: neutral grey, drawn slightly inside its surface.
+    pub body: bool,
+    /// The rest state (frame 0): a curvature or height scale is not taken from it.
+    pub rest: bool,
+    /// The curvature (1/m) or height (m) that saturates the colours, for every frame; None: the
+    /// first solved frame's 98th percentile, then fixed for the run.
+    pub scale: Option<f64>,
+}
+
+/// Logs a layer's mesh coloured as `d.by` asks; returns its vertex colours and its line of the
 /// legend (its scale or colour; none for strain, whose scale is fixed).
 /// The triangles are static unless the layer is remeshed: then they are logged at every
 /// topology change, on the timeline (static data would shadow every earlier frame's triangles).
@@ -17,8 +36,7 @@ pub(crate) fn log_mesh(
     rm: &mut RenderMesh,
     pos: &[DVec3],
     remeshed: bool,
-    by: ColourBy,
-    layer_index: usize,
+    d: &Drawing,
 ) -> (Vec<rerun::Color>, Option<String>) {
     let (normals, strain) = shading::normals_and_strain(pos, &rm.tris, &rm.rest_area);
     let f3 = |v: &DVec3| [v.x as f32, v.y as f32, v.z as f32];
@@ -28,13 +46,44 @@ pub(crate) fn log_mesh(
         let _ = if remeshed { rec.log(path, &topology) } else { rec.log_static(path, &topology) };
         rm.logged_topology = true;
     }
-    let (colours, legend) = colours(rm, pos, &normals, &strain, by, layer_index);
+    let (colours, legend, drawn, scale) = if d.body {
+        let (lo, hi) = pos.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), p| (a.min(*p), b.max(*p)));
+        let inset = BODY_INSET * (hi - lo).length();
+        let drawn: Vec<DVec3> = pos.iter().zip(&normals).map(|(p, n)| *p - inset * *n).collect();
+        let line = format!("body, neutral grey (drawn {} mm inside its surface)", significant(1e3 * inset));
+        (vec![rgba(BODY_GREY); pos.len()], Some(line), drawn, None)
+    } else {
+        let (c, l, scale) = colours(rm, pos, &normals, &strain, d);
+        (c, l, pos.to_vec(), scale)
+    };
+    // The scale the colours saturate at, once, in the recording's properties.
+    if let Some(s) = scale.filter(|s| *s > 0.0 && !rm.scale_sent) {
+        let _ = rec.send_property(format!("colour_scale/{path}"), &rerun::Scalars::new([s]));
+        rm.scale_sent = true;
+    }
     let mesh = rerun::Mesh3D::update_fields()
-        .with_vertex_positions(pos.iter().map(f3))
+        .with_vertex_positions(drawn.iter().map(f3))
         .with_vertex_normals(normals.iter().map(f3))
         .with_vertex_colors(colours.clone());
     let _ = rec.log(path, &mesh);
     (colours, legend)
+}
+
+fn rgba([r, g, b, a]: [u8; 4]) -> rerun::Color {
+    rerun::Color::from_unmultiplied_rgba(r, g, b, a)
+}
+
+/// The scale of `values`' colours: the one set for the run, else the first solved frame's 98th
+/// percentile of |value|, kept for the rest of the run (the same colour means the same value on
+/// every frame, when scrubbing back too).
+fn fixed_scale(rm: &mut RenderMesh, values: &[f64], d: &Drawing) -> f64 {
+    if let Some(s) = d.scale {
+        return s;
+    }
+    if rm.colour_scale == 0.0 && !d.rest {
+        rm.colour_scale = shading::running_scale(0.0, values);
+    }
+    rm.colour_scale
 }
 
 fn colours(
@@ -42,37 +91,31 @@ fn colours(
     pos: &[DVec3],
     normals: &[DVec3],
     strain: &[f64],
-    by: ColourBy,
-    layer_index: usize,
-) -> (Vec<rerun::Color>, Option<String>) {
-    let rgba = |[r, g, b, a]: [u8; 4]| rerun::Color::from_unmultiplied_rgba(r, g, b, a);
+    d: &Drawing,
+) -> (Vec<rerun::Color>, Option<String>, Option<f64>) {
     let diverging =
         |values: &[f64], scale: f64| values.iter().map(|v| rgba(shading::diverging_colour(*v, scale))).collect();
-    match by {
-        ColourBy::Strain => (diverging(strain, shading::STRAIN_SATURATION), None),
+    match d.by {
+        ColourBy::Strain => (diverging(strain, shading::STRAIN_SATURATION), None, Some(shading::STRAIN_SATURATION)),
         ColourBy::Curvature => {
             let h = shading::mean_curvature(pos, &rm.tris, normals);
-            rm.colour_scale = shading::running_scale(rm.colour_scale, &h);
-            let line = if rm.colour_scale > 0.0 {
-                format!("{} 1/m (radius {} mm)", significant(rm.colour_scale), significant(1e3 / rm.colour_scale))
+            let scale = fixed_scale(rm, &h, d);
+            let line = if scale > 0.0 {
+                format!("{} 1/m (radius {} mm)", significant(scale), significant(1e3 / scale))
             } else {
                 "flat".to_string()
             };
-            (diverging(&h, rm.colour_scale), Some(line))
+            (diverging(&h, scale), Some(line), Some(scale))
         }
         ColourBy::Height => {
             let h = shading::plane_height(pos, normals);
-            rm.colour_scale = shading::running_scale(rm.colour_scale, &h);
-            let line = if rm.colour_scale > 0.0 {
-                format!("{} mm", significant(1e3 * rm.colour_scale))
-            } else {
-                "flat".into()
-            };
-            (diverging(&h, rm.colour_scale), Some(line))
+            let scale = fixed_scale(rm, &h, d);
+            let line = if scale > 0.0 { format!("{} mm", significant(1e3 * scale)) } else { "flat".into() };
+            (diverging(&h, scale), Some(line), Some(scale))
         }
         ColourBy::Layer => {
-            let c = shading::layer_colour(layer_index);
-            (vec![rgba(c); pos.len()], Some(format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])))
+            let c = shading::layer_colour(d.layer_index);
+            (vec![rgba(c); pos.len()], Some(format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])), None)
         }
     }
 }

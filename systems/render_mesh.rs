@@ -15,9 +15,11 @@ pub struct RenderMesh {
     pub(crate) tris: Vec<[u32; 3]>,
     pub(crate) rest_area: Vec<f64>,
     pub(crate) logged_topology: bool,
-    /// The colour scale so far (curvature and height colours: the largest seen, so that a
-    /// colour means the same value from frame to frame).
+    /// The curvature or height colours' scale, fixed at the first solved frame (0 until then),
+    /// so that a colour means the same value on every frame.
     pub(crate) colour_scale: f64,
+    /// The scale is in the recording's properties (`colour_scale/<entity>`).
+    pub(crate) scale_sent: bool,
 }
 
 pub(crate) fn render_mesh(

@@ -7,6 +7,7 @@ pub(crate) mod generate;
 pub mod hand;
 pub mod imperfection;
 pub mod locate;
+pub mod map_buffer;
 pub mod obj;
 pub mod remesh;
 pub mod rig;

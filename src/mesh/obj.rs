@@ -149,8 +149,15 @@ fn scan(path: &Path) -> Result<(), ObjError> {
     }
 }
 
-/// Writes positions (m) as `v`, material coordinates (m) as `vt`, and faces `f v/vt`.
-pub fn write(path: &Path, positions: &[DVec3], uv: &[DVec2], faces: &[[u32; 3]]) -> std::io::Result<()> {
+/// Writes positions (m) as `v`, material coordinates (m) as `vt`, vertex normals as `vn`, and
+/// faces `f v/vt/vn`, smoothing on (`s 1`), so that a DCC shades the frame smooth.
+pub fn write(
+    path: &Path,
+    positions: &[DVec3],
+    uv: &[DVec2],
+    normals: &[DVec3],
+    faces: &[[u32; 3]],
+) -> std::io::Result<()> {
     let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
     for p in positions {
         writeln!(w, "v {:.17e} {:.17e} {:.17e}", p.x, p.y, p.z)?;
@@ -158,9 +165,13 @@ pub fn write(path: &Path, positions: &[DVec3], uv: &[DVec2], faces: &[[u32; 3]])
     for t in uv {
         writeln!(w, "vt {:.17e} {:.17e}", t.x, t.y)?;
     }
+    for n in normals {
+        writeln!(w, "vn {:.9e} {:.9e} {:.9e}", n.x, n.y, n.z)?;
+    }
+    writeln!(w, "s 1")?;
     for f in faces {
         let (a, b, c) = (f[0] + 1, f[1] + 1, f[2] + 1);
-        writeln!(w, "f {a}/{a} {b}/{b} {c}/{c}")?;
+        writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?;
     }
     w.flush()
 }

@@ -74,12 +74,12 @@ impl ColourBy {
                  saturated at 10 %."
             }
             ColourBy::Curvature => {
-                "Mean curvature: blue crest, red trough, white flat. Each layer saturates at the largest 98th \
-                 percentile of |H| seen so far:"
+                "Mean curvature: blue crest, red trough, white flat. Each layer saturates at the 98th percentile \
+                 of |H| at the first solved frame (or `--colour-scale`, 1/m), fixed for the run:"
             }
             ColourBy::Height => {
-                "Height over the layer's best-fit plane: blue above, red below. Each layer saturates at the largest \
-                 98th percentile of |height| seen so far:"
+                "Height over the layer's best-fit plane: blue above, red below. Each layer saturates at the 98th \
+                 percentile of |height| at the first solved frame (or `--colour-scale`, mm), fixed for the run:"
             }
             ColourBy::Layer => "One colour per layer:",
         }

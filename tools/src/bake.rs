@@ -1,20 +1,27 @@
 //! `skinsim bake` (LK14 5.4): runs a scene and writes, for chosen frames (or the frames where
-//! the blend shape reaches chosen weights, or a joint chosen angles), an 8-bit RGB normal map
-//! of a shell layer: in its material rectangle (world-space normals), or in the UV layout of the
-//! body its patches sit on (`MapLayout::Asset`: one map per body, normals in the body's tangent
-//! space, ready for a shader); optionally blends of the first two maps; everything also logged
-//! to a Rerun recording (the maps on a "frame" timeline, the blend on a "weight" timeline).
-//! UV triangles that are flipped (skipped) or overlap are reported as warnings naming them.
+//! the blend shape reaches chosen weights, or a joint chosen angles), normal maps of a shell
+//! layer: an 8-bit RGB map in its material rectangle (world-space normals; LK14's layout), or,
+//! in the UV layout of the body its patches sit on (`MapLayout::Asset`, for a shader: one map
+//! per body, issue 65), a normal map in the body's tangent space and a height (displacement)
+//! map, 16-bit by default, texels square in the asset's UVs (its [0, 1] atlas, or an OBJ body's
+//! `vt`), each patch faded into the body's unwrinkled surface over `edge_blend` from its edge
+//! and padded across its UV borders by `padding` pixels; optionally blends of the first two
+//! maps; everything also logged to a Rerun recording (the maps on a "frame" timeline, the blend
+//! on a "weight" timeline). UV triangles that are flipped (skipped) or overlap are reported as
+//! warnings naming them.
 
 use std::path::{Path, PathBuf};
 
 use glam::{DVec2, DVec3};
 use image::RgbImage;
+use skinsim::mesh::locate::XyLocator;
+use skinsim::mesh::map_buffer::{boundary_distances, fade, height_image16, normal_image16, MapBuffer, MapGrid};
 use skinsim::mesh::shading::vertex_normals;
 use skinsim::mesh::wrinkle_map::{blend, draw_normals, encode, tangent_frames, uv_problems};
 use skinsim::model::{Interpolation, Keyframes, LayerKind};
 use skinsim::scene::built::BuiltDriver;
 use skinsim::scene::BuiltScene;
+use skinsim_systems::inspect::SurfaceSnapshot;
 use skinsim_systems::Simulation;
 
 /// What to bake.
@@ -29,6 +36,33 @@ pub struct BakeRequest {
     /// Blends of the first two maps written as images.
     pub blends: Vec<f64>,
     pub layout: MapLayout,
+    /// Asset maps: pixels of padding around each drawn region (its values carried outward).
+    pub padding: u32,
+    /// Asset maps: the width (m) over which a patch fades from its edge into the body's
+    /// unwrinkled surface (normal (0, 0, 1) in tangent space, height 0).
+    pub edge_blend: f64,
+    /// Asset maps: bits per channel of the normal map (8 or 16; the height map is 16).
+    pub bits: u8,
+    /// Asset maps: the height (m) at the height map's white (its black is minus it, grey 0).
+    pub height_range: f64,
+}
+
+impl Default for BakeRequest {
+    fn default() -> Self {
+        BakeRequest {
+            frames: Vec::new(),
+            weights: Vec::new(),
+            angles: Vec::new(),
+            size: 1024,
+            layer: None,
+            blends: Vec::new(),
+            layout: MapLayout::Material,
+            padding: 8,
+            edge_blend: 2e-3,
+            bits: 16,
+            height_range: 1e-3,
+        }
+    }
 }
 
 /// Where a map's pixels lie.
@@ -112,17 +146,14 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
     if req.layout == MapLayout::Asset && scene.patches.iter().all(|p| p.body.is_none()) {
         return Err("--layout asset bakes into a shared body's UVs: the scene has no patch on a body".into());
     }
-    // A glTF body's material coordinates are its UV islands made length-true, each centred on
-    // the origin, so they overlap: a map laid out in them would be wrong. (Its own [0, 1] UVs
-    // reach the USD cache's `st`; maps in them are issue 65's.)
-    let gltf =
-        scene.patches.iter().filter_map(|p| p.body).map(|b| &scene.bodies[b]).find(|b| b.layers[0].asset.is_some());
-    if let (MapLayout::Asset, Some(body)) = (req.layout, gltf) {
-        return Err(format!(
-            "--layout asset: \"{}\" is a glTF body, whose length-true UV islands overlap in material space; bake \
-             with --layout material (one map per patch, in its own chart)",
-            body.name
-        ));
+    if !(req.bits == 8 || req.bits == 16) {
+        return Err(format!("--bits must be 8 or 16 (got {})", req.bits));
+    }
+    if !(req.edge_blend >= 0.0 && req.edge_blend.is_finite()) {
+        return Err(format!("--edge-blend must be a length of at least 0 (got {})", req.edge_blend));
+    }
+    if !(req.height_range > 0.0 && req.height_range.is_finite()) {
+        return Err(format!("--height-range must be a positive length (got {})", req.height_range));
     }
     Ok(frames)
 }
@@ -161,7 +192,8 @@ pub fn bake(
     };
     let mut output = BakeOutput { maps: Vec::new(), rectangles: Vec::new(), warnings: Vec::new() };
     let mut checked = std::collections::HashSet::new();
-    let mut maps: Vec<(usize, RgbImage)> = Vec::new();
+    let mut maps: Vec<(usize, Map)> = Vec::new();
+    let unit = scene.scene.units.length.to_si();
     for frame in 0..=*frames.last().unwrap() {
         if frame > 0 {
             sim.step();
@@ -173,93 +205,254 @@ pub fn bake(
             continue;
         }
         for (ti, target) in targets.iter().enumerate() {
-            let flat = RgbImage::from_pixel(req.size, req.size, encode(DVec3::Z));
-            let img = match req.layout {
+            let map = match req.layout {
                 MapLayout::Material => {
                     let (patch, layer, _) = &layers[ti];
                     let (uv, pos, faces) = sim.layer_surface(patch, layer);
                     let (lo, hi) = skinsim::mesh::bounds(&uv);
                     let faces =
                         checked_faces(&mut output.warnings, &mut checked, patch, layer, &uv, &faces, req.size, lo, hi);
-                    let mut img = flat;
+                    let mut img = RgbImage::from_pixel(req.size, req.size, encode(DVec3::Z));
                     draw_normals(&mut img, &uv, &faces, &vertex_normals(&pos, &faces), lo, hi);
-                    img
+                    Map::Material(img)
                 }
                 MapLayout::Asset => {
-                    let (body_uv, body_pos, body_faces) = sim.layer_surface(target, target);
-                    let (lo, hi) = skinsim::mesh::bounds(&body_uv);
+                    let body = sim.layer_snapshot(target, target);
+                    let body_uv = asset_uv(&body, unit);
+                    let (lo, hi) = MapGrid::rectangle_of(&body_uv);
+                    let grid = MapGrid::square_texels(lo, hi, req.size);
                     if frame == frames[0] {
-                        output.rectangles.push((target.clone(), lo, hi));
+                        output.rectangles.push((target.clone(), grid.lo, grid.hi));
                     }
-                    let frames_of =
-                        tangent_frames(&body_pos, &body_uv, &body_faces, &vertex_normals(&body_pos, &body_faces));
-                    let at_uv: std::collections::HashMap<[u64; 2], usize> =
-                        body_uv.iter().enumerate().map(|(i, u)| (u.to_array().map(f64::to_bits), i)).collect();
-                    let mut img = flat;
+                    // Each pixel: the tangent normal, the height and the distance to the patch's
+                    // edge, interpolated; then faded by that distance (per pixel, as fine as the
+                    // map), so that the patch meets the body's unwrinkled surface at its edge.
+                    let mut drawn = MapBuffer::new(grid, [0.0, 0.0, 1.0, 0.0, f64::INFINITY]);
+                    let under = BodyField::new(&body, &body_uv);
                     for (patch, layer, _) in layers.iter().filter(|(_, _, b)| b.as_ref() == Some(target)) {
-                        let (uv, pos, faces) = sim.layer_surface(patch, layer);
+                        let skin = sim.layer_snapshot(patch, layer);
+                        let uv = asset_uv(&skin, unit);
                         let faces = checked_faces(
                             &mut output.warnings,
                             &mut checked,
                             patch,
                             layer,
                             &uv,
-                            &faces,
+                            &skin.faces,
                             req.size,
-                            lo,
-                            hi,
+                            grid.lo,
+                            grid.hi,
                         );
-                        let normals = vertex_normals(&pos, &faces);
-                        // The skin is cut from the body: each vertex has the body's UV.
-                        let tangent: Vec<DVec3> = uv
-                            .iter()
-                            .zip(&normals)
-                            .map(|(u, n)| match at_uv.get(&u.to_array().map(f64::to_bits)) {
-                                Some(&b) => frames_of[b].transpose() * *n,
-                                None => *n,
-                            })
-                            .collect();
-                        draw_normals(&mut img, &uv, &faces, &tangent, lo, hi);
+                        let (n, h) = under.tangent_normals_and_heights(&skin, &uv, &faces);
+                        let d = boundary_distances(&skin.rest, &faces);
+                        let values: Vec<[f64; 5]> =
+                            (0..n.len()).map(|i| [n[i].x, n[i].y, n[i].z, h[i], d[i].min(FAR)]).collect();
+                        drawn.draw(&uv, &faces, &values);
                     }
-                    img
+                    let mut normals = MapBuffer::new(grid, [0.0, 0.0, 1.0]);
+                    let mut heights = MapBuffer::new(grid, [0.0]);
+                    for (i, v) in drawn.values.iter().enumerate().filter(|(i, _)| drawn.covered[*i]) {
+                        let w = fade(v[4], req.edge_blend);
+                        let n = DVec3::Z + w * (DVec3::new(v[0], v[1], v[2]).normalize_or(DVec3::Z) - DVec3::Z);
+                        normals.values[i] = n.normalize_or(DVec3::Z).to_array();
+                        heights.values[i] = [w * v[3]];
+                        (normals.covered[i], heights.covered[i]) = (true, true);
+                    }
+                    normals.dilate(req.padding);
+                    heights.dilate(req.padding);
+                    Map::Asset { normals, heights }
                 }
             };
             let path = out.join(format!("{target}_{frame:05}.png"));
-            img.save(&path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            map.save(&path, req).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            if let Map::Asset { heights, .. } = &map {
+                let path = out.join(format!("{target}_height_{frame:05}.png"));
+                let img = height_image16(heights, req.height_range);
+                img.save(&path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            }
             if let Some(rec) = rec {
                 rec.set_time_sequence("frame", frame as i64);
-                let _ =
-                    rec.log(format!("wrinkle_map/{target}"), &rerun::Image::from_rgb24(img.to_vec(), [req.size; 2]));
+                let _ = rec.log(format!("wrinkle_map/{target}"), &map.preview());
             }
             let (patch, layer) = match req.layout {
                 MapLayout::Material => (layers[ti].0.clone(), layers[ti].1.clone()),
                 MapLayout::Asset => (target.clone(), "tangent".to_string()),
             };
-            maps.push((ti, img));
+            maps.push((ti, map));
             output.maps.push(Baked { patch, layer, frame, path });
         }
     }
+    if req.layout == MapLayout::Asset {
+        write_sidecar(out, req, &output)
+            .map_err(|e| format!("cannot write the maps' description in {}: {e}", out.display()))?;
+    }
     // Blends of the first two maps of the first target (two key poses).
-    let first: Vec<&RgbImage> = maps.iter().filter(|(ti, _)| *ti == 0).map(|(_, m)| m).take(2).collect();
+    let first: Vec<&Map> = maps.iter().filter(|(ti, _)| *ti == 0).map(|(_, m)| m).take(2).collect();
     if let [a, b] = first[..] {
         let target = &targets[0];
         for &w in &req.blends {
             let path = out.join(format!("{target}_blend_{w:.2}.png"));
-            blend(a, b, w).save(&path).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            a.blend(b, w).save(&path, req).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         }
         if let Some(rec) = rec {
             for step in 0..=10 {
                 let w = step as f64 / 10.0;
                 rec.set_time_sequence("weight_percent", (100.0 * w) as i64);
-                let img = blend(a, b, w);
-                let _ = rec
-                    .log(format!("wrinkle_map/{target}/blend"), &rerun::Image::from_rgb24(img.to_vec(), [req.size; 2]));
+                let _ = rec.log(format!("wrinkle_map/{target}/blend"), &a.blend(b, w).preview());
             }
         }
     } else if !req.blends.is_empty() {
         return Err("--blend needs two baked frames".into());
     }
     Ok(output)
+}
+
+/// A distance to a patch's edge that stands for "far" (m): a closed skin has no edge.
+const FAR: f64 = 1e3;
+
+/// One baked map: LK14's 8-bit map in material space, or an asset map's normals (tangent
+/// space) and heights as numbers, encoded when written.
+enum Map {
+    Material(RgbImage),
+    Asset { normals: MapBuffer<3>, heights: MapBuffer<1> },
+}
+
+impl Map {
+    fn save(&self, path: &Path, req: &BakeRequest) -> image::ImageResult<()> {
+        match self {
+            Map::Material(img) => img.save(path),
+            Map::Asset { normals, .. } if req.bits == 16 => normal_image16(normals).save(path),
+            Map::Asset { .. } => self.rgb8().save(path),
+        }
+    }
+
+    fn rgb8(&self) -> RgbImage {
+        match self {
+            Map::Material(img) => img.clone(),
+            Map::Asset { normals, .. } => RgbImage::from_fn(normals.grid.width, normals.grid.height, |x, y| {
+                encode(DVec3::from_array(normals.at(x, y)).normalize_or(DVec3::Z))
+            }),
+        }
+    }
+
+    fn preview(&self) -> rerun::Image {
+        let img = self.rgb8();
+        rerun::Image::from_rgb24(img.to_vec(), [img.width(), img.height()])
+    }
+
+    /// The normalized (1 - w) a + w b per pixel (heights: the plain mix).
+    fn blend(&self, other: &Map, w: f64) -> Map {
+        match (self, other) {
+            (Map::Asset { normals: na, heights: ha }, Map::Asset { normals: nb, heights: hb }) => {
+                let mut normals = na.clone();
+                for (v, b) in normals.values.iter_mut().zip(&nb.values) {
+                    let n = DVec3::from_array(*v) * (1.0 - w) + DVec3::from_array(*b) * w;
+                    *v = n.normalize_or(DVec3::Z).to_array();
+                }
+                let mut heights = ha.clone();
+                heights.values.iter_mut().zip(&hb.values).for_each(|(v, b)| v[0] = (1.0 - w) * v[0] + w * b[0]);
+                Map::Asset { normals, heights }
+            }
+            _ => Map::Material(blend(&self.rgb8(), &other.rgb8(), w)),
+        }
+    }
+}
+
+/// A layer's UVs in the asset's layout: its own UVs where it has them (a character's), else its
+/// material coordinates in the scene's length unit (an OBJ body's `vt`).
+fn asset_uv(s: &SurfaceSnapshot, unit: f64) -> Vec<DVec2> {
+    s.asset_uv.clone().unwrap_or_else(|| s.uv.iter().map(|u| *u / unit).collect())
+}
+
+/// Where each point of a patch lies on its body, by UV: the body's vertex of the same UV (a
+/// skin cut from the body), else the body's face over it in UV (a refined skin).
+struct BodyField<'a> {
+    body: &'a SurfaceSnapshot,
+    frames: Vec<glam::DMat3>,
+    rest_normals: Vec<DVec3>,
+    at_uv: std::collections::HashMap<[u64; 2], usize>,
+    face_of: Vec<u32>,
+    uv3: Vec<DVec3>,
+}
+
+impl<'a> BodyField<'a> {
+    fn new(body: &'a SurfaceSnapshot, uv: &[DVec2]) -> Self {
+        let normals = vertex_normals(&body.pos, &body.faces);
+        let frames = tangent_frames(&body.pos, uv, &body.faces, &normals);
+        let rest_normals = vertex_normals(&body.rest, &body.faces);
+        let at_uv = uv.iter().enumerate().map(|(i, u)| (u.to_array().map(f64::to_bits), i)).collect();
+        let mut face_of = vec![u32::MAX; uv.len()];
+        for (f, t) in body.faces.iter().enumerate() {
+            t.iter().for_each(|&v| face_of[v as usize] = f as u32);
+        }
+        let uv3 = uv.iter().map(|u| u.extend(0.0)).collect();
+        BodyField { body, frames, rest_normals, at_uv, face_of, uv3 }
+    }
+
+    /// For each vertex of `skin` (UVs `uv`): its normal in the body's tangent frame there (the
+    /// world normal where it lies on no body face) and its height over the body along the
+    /// body's normal, less that height at rest (the wrinkle's displacement).
+    fn tangent_normals_and_heights(
+        &self,
+        skin: &SurfaceSnapshot,
+        uv: &[DVec2],
+        faces: &[[u32; 3]],
+    ) -> (Vec<DVec3>, Vec<f64>) {
+        let locator = XyLocator::new(&self.uv3, &self.body.faces);
+        let normals = vertex_normals(&skin.pos, faces);
+        let b = self.body;
+        let mut tangent = Vec::with_capacity(uv.len());
+        let mut height = Vec::with_capacity(uv.len());
+        for (i, u) in uv.iter().enumerate() {
+            let under = match self.at_uv.get(&u.to_array().map(f64::to_bits)) {
+                Some(&v) if self.face_of[v] != u32::MAX => {
+                    let f = self.face_of[v] as usize;
+                    let w: [f64; 3] = std::array::from_fn(|k| (b.faces[f][k] as usize == v) as u8 as f64);
+                    Some((f, w))
+                }
+                _ => locator.locate(u.extend(0.0)),
+            };
+            let Some((f, w)) = under else {
+                tangent.push(normals[i]);
+                height.push(0.0);
+                continue;
+            };
+            let mix = |v: &dyn Fn(usize) -> DVec3| (0..3).map(|k| w[k] * v(b.faces[f][k] as usize)).sum::<DVec3>();
+            let n = mix(&|v| self.frames[v].z_axis).normalize_or(DVec3::Z);
+            let t = mix(&|v| self.frames[v].x_axis);
+            let t = (t - n * t.dot(n)).normalize_or(n.any_orthonormal_vector());
+            let frame = glam::DMat3::from_cols(t, n.cross(t), n);
+            tangent.push(frame.transpose() * normals[i]);
+            let n0 = mix(&|v| self.rest_normals[v]).normalize_or(DVec3::Z);
+            let (x, x0) = (mix(&|v| b.pos[v]), mix(&|v| b.rest[v]));
+            height.push((skin.pos[i] - x).dot(n) - (skin.rest[i] - x0).dot(n0));
+        }
+        (tangent, height)
+    }
+}
+
+/// `maps.json` beside asset maps: what their pixels mean (the UV rectangle, the encodings, the
+/// height range), so that a shader setup needs no guessing.
+fn write_sidecar(out: &Path, req: &BakeRequest, output: &BakeOutput) -> std::io::Result<()> {
+    let bodies: Vec<serde_json::Value> = output
+        .rectangles
+        .iter()
+        .map(|(name, lo, hi)| serde_json::json!({ "body": name, "uv_lo": [lo.x, lo.y], "uv_hi": [hi.x, hi.y] }))
+        .collect();
+    let files: Vec<String> =
+        output.maps.iter().map(|m| m.path.file_name().unwrap_or_default().to_string_lossy().into_owned()).collect();
+    let doc = serde_json::json!({
+        "layout": "asset UVs (row 0 at the largest v), texels square",
+        "normal_map": format!("{}-bit RGB, tangent space (T along +u, N the body's normal): n = 2 c - 1", req.bits),
+        "height_map": "<body>_height_<frame>.png: 16-bit grey, the skin's displacement along the body's normal \
+                       from its rest height: h = (g / 65535 * 2 - 1) * height_range_m",
+        "height_range_m": req.height_range,
+        "padding_px": req.padding,
+        "edge_blend_m": req.edge_blend,
+        "bodies": bodies,
+        "normal_maps": files,
+    });
+    std::fs::write(out.join("maps.json"), serde_json::to_string_pretty(&doc).map_err(std::io::Error::other)?)
 }
 
 /// The (patch, layer, its patch's body) to bake: `--layer` in every patch, or the top shell of

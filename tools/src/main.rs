@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use skinsim::mesh::shading::ColourBy;
-use skinsim::mesh::usd::UsdStage;
+use skinsim::mesh::usd::{UsdFormat, UsdOptions, UsdStage};
 use skinsim::scene::{self, BuiltScene};
 use skinsim_systems::log::{Colouring, ObjExport, RerunSink, UsdExport};
 use skinsim_systems::Simulation;
@@ -40,8 +40,10 @@ enum Command {
         #[arg(long)]
         periodic: bool,
     },
-    /// Wrinkle (normal) maps (LK14 5.4): runs the scene and writes an 8-bit RGB PNG per chosen
-    /// frame of a shell layer in material space, blends of the first two, and bake.rrd.
+    /// Wrinkle maps (LK14 5.4): runs the scene and writes per chosen frame an 8-bit RGB normal
+    /// map of a shell layer in material space, or with --layout asset 16-bit normal and height
+    /// maps in the body's UVs (padded, faded at the patches' edges; maps.json says how to read
+    /// them); blends of the first two; and bake.rrd.
     Bake {
         scene: PathBuf,
         /// Frames to bake, e.g. 5,10.
@@ -71,6 +73,18 @@ enum Command {
         /// in the body's tangent space.
         #[arg(long, value_enum, default_value = "material")]
         layout: LayoutArg,
+        /// Asset maps: pixels of padding around each patch's region.
+        #[arg(long, default_value_t = 8)]
+        padding: u32,
+        /// Asset maps: the width (mm) over which a patch fades into its body's unwrinkled surface.
+        #[arg(long, default_value_t = 2.0)]
+        edge_blend: f64,
+        /// Asset maps: bits per channel of the normal map, 8 or 16 (the height map is 16-bit).
+        #[arg(long, default_value_t = 16)]
+        bits: u8,
+        /// Asset maps: the height (mm) the height map's white stands for (black: minus it).
+        #[arg(long, default_value_t = 1.0)]
+        height_range: f64,
     },
     /// Timing table (VALIDATION.md G): per-frame stage times of scenes in the columns of LK14
     /// table 6-1, beside LK14's figures; writes <out>/timing.md.
@@ -209,12 +223,11 @@ impl From<ColourArg> for ColourBy {
 enum Export {
     /// obj/<patch>/<layer>/<frame>.obj
     Obj,
-    /// skinsim.usda: one USD stage, each layer a time-sampled mesh
+    /// skinsim.usdc: one USD stage (Pixar's binary crate format), each layer a time-sampled mesh
     Usd,
+    /// skinsim.usda: the same stage as text
+    Usda,
 }
-
-/// The USD cache's file name in the output folder.
-const USD_STAGE: &str = "skinsim.usda";
 
 #[derive(clap::Args)]
 struct RunArgs {
@@ -246,15 +259,30 @@ struct RunArgs {
     /// (blue up, red down), or one colour per layer. The legend is logged as text.
     #[arg(long = "color", value_enum, default_value = "strain", conflicts_with = "no_rerun")]
     colour: ColourArg,
+    /// The value that saturates the curvature (1/m) or height (mm) colours, for the whole run
+    /// (default: each layer's 98th percentile at the first solved frame, then fixed).
+    #[arg(long = "colour-scale", alias = "color-scale", conflicts_with = "no_rerun", value_parser = positive_scale)]
+    colour_scale: Option<f64>,
     /// Extra exports.
     #[arg(long, value_enum)]
     export: Vec<Export>,
+    /// The USD meshes double-sided (`doubleSided`: a DCC draws the skin's back faces too).
+    #[arg(long)]
+    double_sided: bool,
     /// Worker threads (default: all cores). Results are identical for a fixed count.
     #[arg(long)]
     threads: Option<usize>,
     /// No progress bar or summary.
     #[arg(long)]
     quiet: bool,
+}
+
+/// `--colour-scale`: a positive finite number.
+fn positive_scale(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
+        _ => Err(format!("must be a positive number (got {s})")),
+    }
 }
 
 fn main() -> ExitCode {
@@ -286,12 +314,40 @@ fn main() -> ExitCode {
             report(&out, only, &sweep)
         }
         Command::Timing { scenes, frames, rounds, out } => timing(&scenes, frames, rounds, &out),
-        Command::Bake { scene, frames, weights, angles, size, out, layer, blend, layout } => {
+        Command::Bake {
+            scene,
+            frames,
+            weights,
+            angles,
+            size,
+            out,
+            layer,
+            blend,
+            layout,
+            padding,
+            edge_blend,
+            bits,
+            height_range,
+        } => {
             let layout = match layout {
                 LayoutArg::Material => MapLayout::Material,
                 LayoutArg::Asset => MapLayout::Asset,
             };
-            bake(&scene, BakeRequest { frames, weights, angles, size, layer, blends: blend, layout }, out)
+            let (edge_blend, height_range) = (edge_blend * 1e-3, height_range * 1e-3);
+            let req = BakeRequest {
+                frames,
+                weights,
+                angles,
+                size,
+                layer,
+                blends: blend,
+                layout,
+                padding,
+                edge_blend,
+                bits,
+                height_range,
+            };
+            bake(&scene, req, out)
         }
         Command::Asset { kind: AssetKind::Hand, out, name, finger_cells, arm_cells } => {
             asset_hand(&out, &name, &finger_cells, &arm_cells)
@@ -431,15 +487,23 @@ fn run(args: RunArgs) -> ExitCode {
     };
     if let Some(rec) = &rec {
         sim.world.insert_resource(RerunSink(rec.clone()));
-        sim.world.insert_resource(Colouring(args.colour.into()));
+        let by: ColourBy = args.colour.into();
+        let scale = args.colour_scale.map(|s| if by == ColourBy::Height { s * 1e-3 } else { s });
+        sim.world.insert_resource(Colouring(by, scale));
     }
     if args.export.contains(&Export::Obj) || scene.scene.output.obj {
         sim.world.insert_resource(ObjExport(out.clone()));
     }
-    if args.export.contains(&Export::Usd) || scene.scene.output.usd {
+    let text = args.export.contains(&Export::Usda) || scene.scene.output.usd_text;
+    if args.export.contains(&Export::Usd) || scene.scene.output.usd || text {
         let doc =
             format!("skinsim {}: scene {} ({})", env!("CARGO_PKG_VERSION"), scene.scene.name, args.scene.display());
-        match UsdStage::new(&out.join(USD_STAGE), &doc, 1.0 / scene.scene.frame_time) {
+        let options = UsdOptions {
+            format: if text { UsdFormat::Text } else { UsdFormat::Crate },
+            double_sided: args.double_sided || scene.scene.output.double_sided,
+            st_unit: scene.scene.units.length.to_si(),
+        };
+        match UsdStage::new(&out, &doc, 1.0 / scene.scene.frame_time, options) {
             Ok(stage) => {
                 sim.world.insert_resource(UsdExport(stage));
             }
@@ -522,8 +586,9 @@ fn run(args: RunArgs) -> ExitCode {
     }
     // The USD stage holds every frame that completed, whatever ended the run.
     if let Some(UsdExport(stage)) = sim.world.remove_resource::<UsdExport>() {
+        let path = stage.path().to_path_buf();
         if let Err(e) = stage.finish() {
-            eprintln!("error: cannot write {}: {e}", out.join(USD_STAGE).display());
+            eprintln!("error: cannot write {}: {e}", path.display());
             status = ExitCode::from(1);
         }
     }
@@ -546,7 +611,8 @@ fn clear_earlier_outputs(args: &RunArgs, scene: &BuiltScene, out: &Path) -> std:
     let stale = [
         ("stats.jsonl", !scene.scene.output.stats),
         ("recording.rrd", !(records_here && scene.scene.output.rerun)),
-        (USD_STAGE, true),
+        (UsdFormat::Crate.file_name(), true),
+        (UsdFormat::Text.file_name(), true),
     ];
     for (name, stale) in stale {
         let path = out.join(name);
@@ -690,10 +756,9 @@ fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
                 eprintln!("warning: {w}");
             }
             for (body, lo, hi) in &baked.rectangles {
-                // (in the OBJ's own texture coordinates: material space is vt x the length unit)
-                let unit = scene.scene.units.length.to_si();
-                let vt = |v: glam::DVec2| (v / unit).to_array().map(|x| format!("{x:.4}")).join(", ");
-                println!("{body}: the map spans the body's texture coordinates from ({}) to ({})", vt(*lo), vt(*hi));
+                // (in the asset's own UVs: a character's atlas, an OBJ body's vt)
+                let vt = |v: glam::DVec2| v.to_array().map(|x| format!("{x:.4}")).join(", ");
+                println!("{body}: the map spans the body's UVs from ({}) to ({})", vt(*lo), vt(*hi));
             }
             for m in &baked.maps {
                 println!("frame {:>5}  {}/{}  {}", m.frame, m.patch, m.layer, m.path.display());

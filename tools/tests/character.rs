@@ -73,6 +73,7 @@ fn a_map_blended_by_joint_angle_matches_the_simulated_pose_better_than_either_ke
         layer: Some("skin".into()),
         blends: Vec::new(),
         layout: Default::default(),
+        ..Default::default()
     };
     let baked = bake(&built, &req, &out, None).unwrap().maps;
     assert_eq!(baked.iter().map(|b| b.frame).collect::<Vec<_>>(), vec![4, 6, 8], "the frames at those angles");
@@ -118,6 +119,7 @@ fn angles_need_a_joint() {
         layer: None,
         blends: Vec::new(),
         layout: Default::default(),
+        ..Default::default()
     };
     let e = frames_for(&built, &req(vec![30.0])).unwrap_err();
     assert!(e.contains("--angles needs a scene with a Joint driver"), "{e}");
@@ -196,10 +198,11 @@ fn the_hand_carries_two_knuckle_patches_and_a_sleeve_on_one_body() {
 }
 
 /// Issue 24, item 5: maps in the asset's own UV layout. On `hand_quick`, the knuckle skins are
-/// baked into the hand's UV rectangle (their islands where the asset has them) in the body's
-/// tangent space, at finger angles 16, 24 and 32 degrees; the blend of 16 and 32 against the
-/// simulated 24-degree frame, over the pixels the knuckles cover, and each key alone. Baking the
-/// sleeve too warns about its seam's flipped UV triangles, by face.
+/// baked into the hand's UV rectangle (their islands where the asset has them; issue 65: in the
+/// asset's own vt, texels square) in the body's tangent space, at finger angles 16, 24 and 32
+/// degrees, without padding or edge blending (8-bit, as first measured); the blend of 16 and 32
+/// against the simulated 24-degree frame, over the pixels the knuckles cover, and each key
+/// alone. Baking the sleeve too warns about its seam's flipped UV triangles, by face.
 #[test]
 fn asset_maps_in_tangent_space_blend_by_angle_and_name_bad_uv_triangles() {
     use skinsim::mesh::wrinkle_map::encode;
@@ -208,13 +211,13 @@ fn asset_maps_in_tangent_space_blend_by_angle_and_name_bad_uv_triangles() {
     let built = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     let out = std::env::temp_dir().join(format!("skinsim_hand_bake_{}", std::process::id()));
     let req = BakeRequest {
-        frames: Vec::new(),
-        weights: Vec::new(),
         angles: vec![16.0, 24.0, 32.0],
         size: 512,
-        layer: None,
-        blends: Vec::new(),
         layout: MapLayout::Asset,
+        padding: 0,
+        edge_blend: 0.0,
+        bits: 8,
+        ..Default::default()
     };
     let baked = bake(&built, &req, &out, None).unwrap();
     assert_eq!(baked.maps.iter().map(|b| b.frame).collect::<Vec<_>>(), vec![4, 6, 8], "the frames at those angles");
@@ -223,15 +226,19 @@ fn asset_maps_in_tangent_space_blend_by_angle_and_name_bad_uv_triangles() {
     assert_eq!(baked.warnings.len(), 1, "{:?}", baked.warnings);
     assert!(baked.warnings[0].starts_with("sleeve/sleeve: 24 UV triangles are flipped"), "{:?}", baked.warnings);
     assert!(baked.warnings[0].contains("faces 62, 63, 126, 127"), "{:?}", baked.warnings);
+    // The hand's vt rectangle (mm), 512 texels on its longer (v) side, square texels.
     let (_, lo, hi) = baked.rectangles[0];
-    assert!((lo.x + 0.090).abs() < 1e-9 && (hi.x - 0.075).abs() < 1e-9, "the hand's UV rectangle: {lo} {hi}");
+    assert!((lo.x + 90.0).abs() < 1e-9 && hi.x >= 75.0 && (hi.y - 194.0691).abs() < 1e-3, "{lo} {hi}");
     let maps: Vec<image::RgbImage> = baked.maps.iter().map(|b| image::open(&b.path).unwrap().to_rgb8()).collect();
+    let (w, h) = maps[0].dimensions();
+    assert_eq!(h, 512);
+    assert!(((hi.x - lo.x) / w as f64 - (hi.y - lo.y) / h as f64).abs() < 1e-12, "square texels: {w} x {h}");
     // Pixels of the knuckle islands (v above the arm's island) that a map draws on.
     let flat = encode(DVec3::Z);
-    let v_of_row = |y: u32| hi.y - (y as f64 + 0.5) / 512.0 * (hi.y - lo.y);
-    let covered: Vec<(u32, u32)> = (0..512)
-        .flat_map(|y| (0..512).map(move |x| (x, y)))
-        .filter(|&(x, y)| v_of_row(y) > 0.100 && maps.iter().any(|m| *m.get_pixel(x, y) != flat))
+    let v_of_row = |y: u32| hi.y - (y as f64 + 0.5) / h as f64 * (hi.y - lo.y);
+    let covered: Vec<(u32, u32)> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| v_of_row(y) > 100.0 && maps.iter().any(|m| *m.get_pixel(x, y) != flat))
         .collect();
     assert!(covered.len() > 1000, "{}", covered.len());
     let (with_blend, key_16, key_32) = blend_against_keys(&maps, &covered);
@@ -307,3 +314,90 @@ fn the_hand_asset_is_the_tools_output() {
     let _ = std::fs::remove_dir_all(&out);
     assert!(same, "scenes/character/assets/hand_quick.obj differs from the tool's output: regenerate it");
 }
+
+/// Issue 65: what a shader takes from an asset bake of `hand_quick` at 32 degrees. Against the
+/// same bake without padding or edge blending: (1) the seam along each knuckle's edge, the
+/// largest tilt of a drawn normal next to an undrawn pixel, falls from the skin's own to under
+/// `EDGE_TILT_BOUND_DEGREES`; (2) no pixel within the padding (8) of a drawn one is left flat
+/// (checked without the blend, which makes the edge itself flat);
+/// (3) the 16-bit height map has the normal map's size, is 0 (grey 32768) away from the patches
+/// and varies on them; (4) maps.json describes them.
+#[test]
+fn asset_maps_are_padded_faded_at_the_patch_edges_and_come_with_a_height_map() {
+    use skinsim::mesh::map_buffer::{decode16, encode16};
+    use skinsim_tools::bake::{bake, BakeRequest, MapLayout};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/hand_quick.ron");
+    let built = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let dir = std::env::temp_dir().join(format!("skinsim_hand_maps_{}", std::process::id()));
+    let request = |padding: u32, edge_blend: f64, out: &str| {
+        let req = BakeRequest {
+            angles: vec![32.0],
+            size: 512,
+            layout: MapLayout::Asset,
+            padding,
+            edge_blend,
+            ..Default::default()
+        };
+        let baked = bake(&built, &req, &dir.join(out), None).unwrap();
+        let img = image::open(&baked.maps[0].path).unwrap();
+        assert_eq!(img.color(), image::ColorType::Rgb16, "16-bit by default");
+        img.to_rgb16()
+    };
+    let before = request(0, 0.0, "before");
+    let padded_only = request(8, 0.0, "padded");
+    let after = request(8, 2e-3, "after");
+    let (w, h) = before.dimensions();
+    let flat = encode16(DVec3::Z);
+    let drawn = |x: i64, y: i64| {
+        (0..w as i64).contains(&x) && (0..h as i64).contains(&y) && *before.get_pixel(x as u32, y as u32) != flat
+    };
+    let tilt = |img: &image::ImageBuffer<image::Rgb<u16>, Vec<u16>>, x: u32, y: u32| {
+        decode16(*img.get_pixel(x, y)).angle_between(DVec3::Z).to_degrees()
+    };
+    let (mut seam_before, mut seam_after, mut padded, mut left_flat) = (0.0f64, 0.0f64, 0, 0);
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            let ring = |r: i64| (-r..=r).any(|dy| (-r..=r).any(|dx| drawn(x + dx, y + dy)));
+            // (the knuckles' edges: v above the arm's island; the sleeve's seam is a UV border
+            // inside the skin, where the map is discontinuous by the asset's layout)
+            let knuckle = (y as f64 + 0.5) / (h as f64) < 0.45;
+            let edge = [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|(dx, dy)| !drawn(x + dx, y + dy));
+            if knuckle && drawn(x, y) && edge {
+                seam_before = seam_before.max(tilt(&before, x as u32, y as u32));
+                seam_after = seam_after.max(tilt(&after, x as u32, y as u32));
+            }
+            if !drawn(x, y) && ring(8) {
+                padded += 1;
+                left_flat += (*padded_only.get_pixel(x as u32, y as u32) == flat) as usize;
+            }
+        }
+    }
+    println!(
+        "hand_quick asset map at 32 degrees ({w} x {h}): the largest tilt of a drawn normal at a patch's edge \
+         {seam_before:.1} deg unblended, {seam_after:.2} deg blended over 2 mm; {padded} padding pixels, \
+         {left_flat} left flat"
+    );
+    assert!(seam_before > 5.0, "the unblended edge shows the skin's tilt: {seam_before}");
+    assert!(seam_after < EDGE_TILT_BOUND_DEGREES, "{seam_after}");
+    assert!(padded > 1000 && left_flat == 0, "{padded} {left_flat}");
+    let heights = image::open(dir.join("after/hand_height_00008.png")).unwrap();
+    assert_eq!((heights.width(), heights.height(), heights.color()), (w, h, image::ColorType::L16));
+    let heights = heights.to_luma16();
+    assert_eq!(heights.get_pixel(0, h - 1).0[0], 32768, "0 away from the patches");
+    let on: Vec<u16> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| drawn(x as i64, y as i64))
+        .map(|(x, y)| heights.get_pixel(x, y).0[0])
+        .collect();
+    let (lo, hi) = (on.iter().min().unwrap(), on.iter().max().unwrap());
+    assert!(hi - lo > 200, "the wrinkles show in the heights: {lo}..{hi}");
+    let sidecar: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("after/maps.json")).unwrap()).unwrap();
+    assert_eq!(sidecar["height_range_m"].as_f64(), Some(1e-3));
+    assert_eq!(sidecar["bodies"][0]["body"], "hand");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The largest tilt of a drawn normal at a knuckle's edge once blended over 2 mm (measured in
+/// the test above; unblended it is the skin's own).
+const EDGE_TILT_BOUND_DEGREES: f64 = 3.0;

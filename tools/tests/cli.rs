@@ -293,51 +293,81 @@ fn colour_modes_show_the_wrinkles_and_log_their_legend() {
     assert!(strain.documents["/legend"].contains("Colour: strain"), "{:?}", strain.documents);
 }
 
-/// `--export usd`: Pixar's reader (usd-core, `tools/usd_check.py`) opens the stage and finds
-/// every layer's frames, equal to the OBJ export of the same run: a remeshed layer (time-varying
-/// topology), the KCK18 skin with its kinematic body, and a character (issue 62: the glTF head
-/// and its refined forehead carry the asset's own UVs in `st`, marked so).
+/// `--export usd`: Pixar's reader (usd-core, `tools/usd_check.py`) opens the stage (a `.usdc`
+/// by default, `.usda` on request) and finds every layer's frames, the rest state at frame 0
+/// first, equal to the OBJ export of the same run (normals too): a remeshed layer (time-varying
+/// topology), the KCK18 skin with its kinematic body, a character (issue 62: the glTF head and
+/// its refined forehead carry the asset's own UVs in `st`, marked so), and the hand's patches
+/// (issue 65: mesh prims named `<patch>_<layer>`, unique; `st` the hand asset's own `vt`).
 #[test]
 fn the_usd_cache_opens_in_usd_and_matches_the_obj_export() {
     let d = scratch("usd");
     let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
     let checker = Path::new(env!("CARGO_MANIFEST_DIR")).join("usd_check.py");
-    for (name, scene, frames) in [
-        ("remesh", "lk14/remesh_one_layer_quick.ron", "3"),
-        ("crease", "kck18/crease_quick.ron", "2"),
-        ("forehead", "character/forehead_quick.ron", "1"),
+    let mut reports = std::collections::HashMap::new();
+    for (name, scene, frames, export) in [
+        ("remesh", "lk14/remesh_one_layer_quick.ron", "3", "usda"),
+        ("crease", "kck18/crease_quick.ron", "2", "usd"),
+        ("forehead", "character/forehead_quick.ron", "1", "usd"),
+        ("hand", "character/hand_quick.ron", "1", "usd"),
     ] {
         let out = d.join(name);
         let mut run = skinsim();
-        run.args(["run", "--quiet", "--no-rerun", "--export", "usd", "--export", "obj", "--frames", frames, "--out"]);
+        run.args(["run", "--quiet", "--no-rerun", "--export", export, "--export", "obj", "--frames", frames, "--out"]);
         let run = run.arg(&out).arg(scenes.join(scene)).output().unwrap();
         assert_eq!(run.status.code(), Some(0), "{}", String::from_utf8_lossy(&run.stderr));
-        let check = Command::new("python3").arg(&checker).arg(out.join("skinsim.usda")).arg(out.join("obj")).output();
+        let stage = out.join(if export == "usd" { "skinsim.usdc" } else { "skinsim.usda" });
+        assert!(stage.is_file(), "{name}: no {}", stage.display());
+        let check = Command::new("python3").arg(&checker).arg(&stage).arg(out.join("obj")).output();
         let check = check.expect("python3 runs tools/usd_check.py");
         let (stdout, stderr) = (String::from_utf8_lossy(&check.stdout), String::from_utf8_lossy(&check.stderr));
         println!("{name}:\n{stdout}{stderr}");
         assert_eq!(check.status.code(), Some(0), "{stdout}{stderr}");
-        assert!(stdout.contains(&format!("{frames} time samples")), "{stdout}");
+        // Frame 0 (the rest state) and the frames run.
+        let samples = frames.parse::<u32>().unwrap() + 1;
+        assert!(stdout.contains(&format!("{samples} time samples")), "{stdout}");
+        assert!(stdout.contains(&format!("time codes 0-{frames} at 30 per second")), "{stdout}");
         let hidden: Vec<_> = std::fs::read_dir(&out)
             .unwrap()
             .flatten()
             .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
             .collect();
         assert!(hidden.is_empty(), "the spool is left: {hidden:?}");
+        reports.insert(name, stdout.to_string());
     }
     let text = std::fs::read_to_string(d.join("remesh/skinsim.usda")).unwrap();
     assert!(text.contains("int[] faceVertexIndices.timeSamples"), "a remeshed layer samples its topology");
-    let text = std::fs::read_to_string(d.join("crease/skinsim.usda")).unwrap();
-    assert!(text.contains("string name = \"body\"") && text.contains("string name = \"skin\""));
-    // The body once, and the patch on it; st in the atlas's [0, 1], as the asset has it.
-    let text = std::fs::read_to_string(d.join("forehead/skinsim.usda")).unwrap();
-    for layer in ["head", "surface", "dermis"] {
-        assert_eq!(text.matches(&format!("string name = \"{layer}\"; string st = \"asset\"")).count(), 1, "{layer}");
+    assert!(reports["remesh"].contains("(topology time-sampled)"), "{}", reports["remesh"]);
+    // Two patches with layers of the same names: every mesh prim its own name.
+    for prim in [
+        "/skinsim/walk/walk_body ",
+        "/skinsim/walk/walk_skin ",
+        "/skinsim/project/project_body ",
+        "/skinsim/project/project_skin ",
+    ] {
+        assert!(reports["crease"].contains(prim), "{prim}: {}", reports["crease"]);
     }
-    let st = text.split("texCoord2f[] primvars:st = [").nth(1).unwrap().split(']').next().unwrap();
-    let values: Vec<f64> =
-        st.split(|c: char| "(), ".contains(c)).filter(|s| !s.is_empty()).map(|s| s.parse().unwrap()).collect();
-    assert!(values.len() > 1000 && values.iter().all(|v| (0.0..=1.0).contains(v)), "{}", values.len());
+    // The body once, and the patch on it; st in the atlas's [0, 1], as the asset has it.
+    let forehead = &reports["forehead"];
+    for layer in ["head", "surface", "dermis"] {
+        let line = forehead.lines().find(|l| l.contains(&format!("/{layer})"))).expect(layer);
+        assert!(line.contains("st the asset's UVs (finite, one per point)"), "{line}");
+        let range = line.split("st in [").nth(1).unwrap();
+        let values: Vec<f64> =
+            range.split(|c: char| "[], x".contains(c)).filter_map(|s| s.parse().ok()).take(4).collect();
+        assert!(values.len() == 4 && values.iter().all(|v| (0.0..=1.0).contains(v)), "{line}");
+    }
+    // The hand's knuckle patches: each skin its own prim, st the hand OBJ's vt (mm, as written).
+    let hand = &reports["hand"];
+    for prim in ["/skinsim/knuckle_a/knuckle_a_skin", "/skinsim/knuckle_b/knuckle_b_skin"] {
+        let line = hand.lines().find(|l| l.starts_with(prim)).unwrap_or_else(|| panic!("{prim}:\n{hand}"));
+        assert!(line.contains("st matches"), "{line}");
+        // (in the asset's own units: the hand's vt span [-90, 75] x [0, 194] mm)
+        let range = line.split("st in [").nth(1).unwrap();
+        let v: Vec<f64> = range.split(|c: char| "[], x".contains(c)).filter_map(|s| s.parse().ok()).take(4).collect();
+        assert!(v.len() == 4 && v[1] - v[0] > 1.0 && v[0] >= -90.0 && v[1] <= 75.0, "{line}");
+        assert!(v[3] - v[2] > 1.0 && v[2] >= 0.0 && v[3] <= 194.1, "{line}");
+    }
 }
 
 /// The layout sent with the recording, read back: per patch a 3D view and its energy, residual
@@ -623,4 +653,44 @@ fn kck18_skin_far_from_its_body_exits_with_status_2() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("far.ron") && err.contains("anchors.max_distance"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
+}
+
+/// Blender 4.5 (PyPI `bpy`, which `.ci/run` installs) imports the hand's stage through
+/// `tools/blender_import.py`: one object per mesh prim under its own name, the stage's 30 fps
+/// (which Blender's importer alone leaves at 24), the frame range from the rest frame 0, and UVs
+/// equal to the asset's own (`vt`, in mm). Skipped, saying so, where `bpy` cannot be imported.
+#[test]
+fn blender_imports_the_usd_cache_with_its_names_fps_and_uvs() {
+    let probe = Command::new("python3").args(["-c", "import bpy"]).output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        println!("skipped: python3 cannot import bpy (python3 -m pip install bpy==4.5.15)");
+        return;
+    }
+    let d = scratch("blender");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let run = skinsim()
+        .args(["run", "--quiet", "--no-rerun", "--export", "usd", "--frames", "2", "--out"])
+        .arg(&d)
+        .arg(scenes.join("character/hand_quick.ron"))
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(0), "{}", String::from_utf8_lossy(&run.stderr));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("blender_import.py");
+    let out = Command::new("python3").arg(&script).arg(d.join("skinsim.usdc")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    let json = &stdout[stdout.find('{').expect("a JSON summary")..];
+    let v: serde_json::Value = serde_json::from_str(json).expect(json);
+    assert_eq!(v["fps"].as_f64(), Some(30.0), "{v}");
+    assert_eq!((v["frame_start"].as_i64(), v["frame_end"].as_i64()), (Some(0), Some(2)), "{v}");
+    let objects = v["objects"].as_object().expect("objects");
+    for name in ["hand_hand", "knuckle_a_skin", "knuckle_b_skin", "sleeve_sleeve"] {
+        assert!(objects.contains_key(name), "{name}: {v}");
+        assert_eq!(objects[name]["uv_map"], "st", "{name}");
+    }
+    // The knuckle's UVs are the hand asset's vt there (mm), not metres.
+    let range = &objects["knuckle_a_skin"]["uv_range"];
+    let at = |i: usize, k: usize| range[i][k].as_f64().unwrap();
+    assert!((at(0, 0) - 10.0).abs() < 1e-3 && (at(1, 0) - 60.0).abs() < 1e-3, "{range}");
+    assert!((at(0, 1) - 116.4745).abs() < 1e-2 && (at(1, 1) - 134.0493).abs() < 1e-2, "{range}");
 }

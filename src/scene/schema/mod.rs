@@ -312,13 +312,19 @@ pub struct OutputSpec {
     /// obj/<patch>/<layer>/<frame>.obj
     #[serde(default)]
     pub obj: bool,
-    /// skinsim.usda: a USD cache of every layer
+    /// skinsim.usdc: a USD cache of every layer (Pixar's binary crate format)
     #[serde(default)]
     pub usd: bool,
+    /// skinsim.usda instead: the same stage as text
+    #[serde(default)]
+    pub usd_text: bool,
+    /// The USD meshes double-sided (`doubleSided`)
+    #[serde(default)]
+    pub double_sided: bool,
 }
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { stats: true, rerun: true, obj: false, usd: false }
+        OutputSpec { stats: true, rerun: true, obj: false, usd: false, usd_text: false, double_sided: false }
     }
 }
