@@ -16,6 +16,9 @@ pub struct RecordingIndex {
     pub recording_ids: BTreeSet<String>,
     /// Every text property: "entity:field" (under `/__properties`) -> its value.
     pub properties: BTreeMap<String, String>,
+    /// Every numeric property: "entity:field" (under `/__properties`) -> its values (the
+    /// colour scales).
+    pub property_numbers: BTreeMap<String, Vec<f64>>,
     /// Entity path -> the vertex colours (RGBA, 0xRRGGBBAA) it was last logged with.
     pub colours: BTreeMap<String, Vec<u32>>,
     /// Every text of the blueprints sent (view names, origins, content queries).
@@ -51,6 +54,11 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
                 for (field, column) in chunk.components().0.iter() {
                     for v in texts(&column.list_array) {
                         index.properties.insert(format!("{entity}:{field}"), v);
+                    }
+                    let values = column.list_array.values();
+                    let numbers = values.as_any().downcast_ref::<rerun::external::arrow::array::Float64Array>();
+                    if let Some(n) = numbers.filter(|n| !n.is_empty()) {
+                        index.property_numbers.insert(format!("{entity}:{field}"), n.values().to_vec());
                     }
                 }
             }

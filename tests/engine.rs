@@ -198,12 +198,22 @@ fn the_recording_holds_every_layer_and_frame() {
     let mut scene = load("strip_wrinkles.ron");
     scene.scene.frames = 3;
     let RecordingIndex { frames, sim_time, .. } = record(&scene, "strip");
-    // sim_time in nanoseconds: frames 1..3 at 1/30 s.
-    let expected: BTreeSet<i64> = (1..=3).map(|f| (f as f64 / 30.0 * 1e9).round() as i64).collect();
+    // sim_time in nanoseconds: the rest state at 0 (issue 65), frames 1..3 at 1/30 s.
+    let expected: BTreeSet<i64> = (0..=3).map(|f| (f as f64 / 30.0 * 1e9).round() as i64).collect();
     assert_eq!(sim_time, expected);
-    for entity in ["/patches/strip/film", "/patches/strip/base", "/stats/strip/energy", "/timings/solve"] {
+    // The layers from the rest state (frame 0), the solve's figures from frame 1; the stage
+    // timings from frame 2, frame 1's (the set-up) apart.
+    let logged = [
+        ("/patches/strip/film", 0..=3),
+        ("/patches/strip/base", 0..=3),
+        ("/stats/strip/energy", 1..=3),
+        ("/stats/strip/log10_residual", 1..=3),
+        ("/timings/solve", 2..=3),
+        ("/setup_timings/solve", 1..=1),
+    ];
+    for (entity, range) in logged {
         let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
-        assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2, 3], "{entity}");
+        assert_eq!(f.iter().copied().collect::<Vec<_>>(), range.collect::<Vec<i64>>(), "{entity}");
     }
 }
 
@@ -216,14 +226,16 @@ fn the_recording_holds_the_material_space_mesh_of_a_remeshed_layer() {
     let frames = record(&scene, "remesh").frames;
     for entity in ["/patches/skin/dermis", "/material/skin/dermis", "/material/skin/dermis/edges"] {
         let f = frames.get(entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
-        assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2], "{entity}");
+        assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![0, 1, 2], "{entity}");
     }
     assert!(!frames.contains_key("/material/skin/base"));
 }
 
 /// KCK18: body, skin, anchors (points and springs) and the largest jump of each method; the
 /// anchors are screen-sized dots (a radius in metres at every vertex and face centre hid the
-/// skin).
+/// skin), with a legend of their own. Issue 65: the body and skin from the rest state (frame
+/// 0), the body a neutral grey whatever the colouring, the skin's colour scale in the
+/// recording's properties.
 #[test]
 fn the_recording_holds_the_anchors_of_each_method() {
     let mut scene = load("kck18/crease_quick.ron");
@@ -231,16 +243,23 @@ fn the_recording_holds_the_anchors_of_each_method() {
     let index = record(&scene, "kck18");
     let frames = &index.frames;
     for patch in ["walk", "project", "ring"] {
-        for entity in [
-            format!("/patches/{patch}/body"),
-            format!("/patches/{patch}/skin"),
-            format!("/patches/{patch}/skin/anchors/points"),
-            format!("/patches/{patch}/skin/anchors/springs"),
-            format!("/stats/{patch}/anchors/max_jump"),
+        for (entity, first) in [
+            (format!("/patches/{patch}/body"), 0),
+            (format!("/patches/{patch}/skin"), 0),
+            (format!("/patches/{patch}/skin/anchors/points"), 1),
+            (format!("/patches/{patch}/skin/anchors/springs"), 1),
+            (format!("/stats/{patch}/anchors/max_jump"), 1),
         ] {
             let f = frames.get(&entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
-            assert_eq!(f.iter().copied().collect::<Vec<_>>(), vec![1, 2], "{entity}");
+            assert_eq!(f.iter().copied().collect::<Vec<_>>(), (first..=2).collect::<Vec<i64>>(), "{entity}");
         }
+        let body = &index.colours[&format!("/patches/{patch}/body")];
+        assert!(!body.is_empty() && body.iter().all(|c| *c == 0xB2B2B2FF), "{patch}: the body's colours");
+        let key = format!("/__properties/colour_scale/patches/{patch}/skin:");
+        let scale = index.property_numbers.iter().find(|(k, _)| k.starts_with(&key)).map(|(_, v)| v);
+        assert_eq!(scale, Some(&vec![0.1]), "{patch}: strain saturates at 10 %: {:?}", index.property_numbers);
+        let legend = &index.documents[&format!("/anchor_legend/{patch}/skin")];
+        assert!(legend.contains("dark violet"), "{legend}");
         let radii = &index.radii[&format!("/patches/{patch}/skin/anchors/points")];
         assert!(
             !radii.is_empty() && radii.iter().all(|r| *r < 0.0),

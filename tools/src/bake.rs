@@ -45,6 +45,9 @@ pub struct BakeRequest {
     pub bits: u8,
     /// Asset maps: the height (m) at the height map's white (its black is minus it, grey 0).
     pub height_range: f64,
+    /// Asset maps: Loop subdivision levels the skin is drawn at (its limit surface's normals
+    /// instead of its triangles' interpolated ones; 0: the triangles).
+    pub smooth: u32,
 }
 
 impl Default for BakeRequest {
@@ -60,7 +63,8 @@ impl Default for BakeRequest {
             padding: 8,
             edge_blend: 2e-3,
             bits: 16,
-            height_range: 1e-3,
+            height_range: 5e-3,
+            smooth: 2,
         }
     }
 }
@@ -151,6 +155,9 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
     }
     if !(req.edge_blend >= 0.0 && req.edge_blend.is_finite()) {
         return Err(format!("--edge-blend must be a length of at least 0 (got {})", req.edge_blend));
+    }
+    if req.smooth > 3 {
+        return Err(format!("--smooth must be at most 3 levels (64 triangles per triangle; got {})", req.smooth));
     }
     if !(req.height_range > 0.0 && req.height_range.is_finite()) {
         return Err(format!("--height-range must be a positive length (got {})", req.height_range));
@@ -243,11 +250,20 @@ pub fn bake(
                             grid.lo,
                             grid.hi,
                         );
-                        let (n, h) = under.tangent_normals_and_heights(&skin, &uv, &faces);
                         let d = boundary_distances(&skin.rest, &faces);
+                        let coarse = DrawnSkin { skin: SurfaceSnapshot { faces, ..skin }, uv, distance: d };
+                        let DrawnSkin { skin, uv, distance: d } = match smoothed(&coarse, req.smooth) {
+                            Ok(s) => s,
+                            Err(e) => {
+                                let why = format!("{patch}/{layer}: drawn as its triangles, not subdivided ({e})");
+                                output.warnings.push(why);
+                                coarse
+                            }
+                        };
+                        let (n, h) = under.tangent_normals_and_heights(&skin, &uv, &skin.faces);
                         let values: Vec<[f64; 5]> =
                             (0..n.len()).map(|i| [n[i].x, n[i].y, n[i].z, h[i], d[i].min(FAR)]).collect();
-                        drawn.draw(&uv, &faces, &values);
+                        drawn.draw(&uv, &skin.faces, &values);
                     }
                     let mut normals = MapBuffer::new(grid, [0.0, 0.0, 1.0]);
                     let mut heights = MapBuffer::new(grid, [0.0]);
@@ -358,6 +374,40 @@ impl Map {
     }
 }
 
+/// The skin `levels` times Loop-subdivided (its vertices on the limit surface through the
+/// skin's, at the current and the rest positions), its UVs and edge distances interpolated
+/// linearly: a quick scene's coarse triangles otherwise show as facets in the map (their
+/// vertex normals interpolated linearly), whatever the map's resolution.
+fn smoothed(coarse: &DrawnSkin, levels: u32) -> Result<DrawnSkin, String> {
+    let DrawnSkin { skin, uv, distance } = coarse;
+    let faces = &skin.faces;
+    if levels == 0 {
+        return Ok(coarse.clone());
+    }
+    let region: Vec<u32> = (0..faces.len() as u32).collect();
+    let r = skinsim::mesh::subdivision::refine(&skin.rest, faces, &region, levels).map_err(|e| e.to_string())?;
+    let (mut pos, mut rest) = (Vec::new(), Vec::new());
+    skinsim::mesh::subdivision::apply_all(&r.stencils, &skin.pos, &mut pos);
+    skinsim::mesh::subdivision::apply_all(&r.stencils, &skin.rest, &mut rest);
+    // (each refined vertex's coarse face and barycentric weights: linear in the UVs)
+    let k_of = |v: u32, k: usize| if k < 2 { uv[v as usize][k] } else { distance[v as usize] };
+    let mix = |(f, w): &(u32, DVec3), k: usize| {
+        let c = faces[*f as usize];
+        w.x * k_of(c[0], k) + w.y * k_of(c[1], k) + w.z * k_of(c[2], k)
+    };
+    let uv = r.parent.iter().map(|p| DVec2::new(mix(p, 0), mix(p, 1))).collect();
+    let distance = r.parent.iter().map(|p| mix(p, 2)).collect();
+    Ok(DrawnSkin { skin: SurfaceSnapshot { uv: Vec::new(), asset_uv: None, pos, rest, faces: r.faces }, uv, distance })
+}
+
+/// A skin as drawn into an asset map: its surface, UVs and distances to its edge (m).
+#[derive(Clone)]
+struct DrawnSkin {
+    skin: SurfaceSnapshot,
+    uv: Vec<DVec2>,
+    distance: Vec<f64>,
+}
+
 /// A layer's UVs in the asset's layout: its own UVs where it has them (a character's), else its
 /// material coordinates in the scene's length unit (an OBJ body's `vt`).
 fn asset_uv(s: &SurfaceSnapshot, unit: f64) -> Vec<DVec2> {
@@ -449,6 +499,7 @@ fn write_sidecar(out: &Path, req: &BakeRequest, output: &BakeOutput) -> std::io:
         "height_range_m": req.height_range,
         "padding_px": req.padding,
         "edge_blend_m": req.edge_blend,
+        "loop_subdivision_levels": req.smooth,
         "bodies": bodies,
         "normal_maps": files,
     });

@@ -77,14 +77,17 @@ enum Command {
         #[arg(long, default_value_t = 8)]
         padding: u32,
         /// Asset maps: the width (mm) over which a patch fades into its body's unwrinkled surface.
-        #[arg(long, default_value_t = 2.0)]
+        #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
         edge_blend: f64,
         /// Asset maps: bits per channel of the normal map, 8 or 16 (the height map is 16-bit).
         #[arg(long, default_value_t = 16)]
         bits: u8,
         /// Asset maps: the height (mm) the height map's white stands for (black: minus it).
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
         height_range: f64,
+        /// Asset maps: Loop subdivision levels the skin is drawn at (0: its triangles).
+        #[arg(long, default_value_t = 2)]
+        smooth: u32,
     },
     /// Timing table (VALIDATION.md G): per-frame stage times of scenes in the columns of LK14
     /// table 6-1, beside LK14's figures; writes <out>/timing.md.
@@ -261,7 +264,13 @@ struct RunArgs {
     colour: ColourArg,
     /// The value that saturates the curvature (1/m) or height (mm) colours, for the whole run
     /// (default: each layer's 98th percentile at the first solved frame, then fixed).
-    #[arg(long = "colour-scale", alias = "color-scale", conflicts_with = "no_rerun", value_parser = positive_scale)]
+    #[arg(
+        long = "colour-scale",
+        alias = "color-scale",
+        conflicts_with = "no_rerun",
+        value_parser = positive_scale,
+        allow_negative_numbers = true
+    )]
     colour_scale: Option<f64>,
     /// Extra exports.
     #[arg(long, value_enum)]
@@ -328,6 +337,7 @@ fn main() -> ExitCode {
             edge_blend,
             bits,
             height_range,
+            smooth,
         } => {
             let layout = match layout {
                 LayoutArg::Material => MapLayout::Material,
@@ -346,6 +356,7 @@ fn main() -> ExitCode {
                 edge_blend,
                 bits,
                 height_range,
+                smooth,
             };
             bake(&scene, req, out)
         }

@@ -217,6 +217,7 @@ fn asset_maps_in_tangent_space_blend_by_angle_and_name_bad_uv_triangles() {
         padding: 0,
         edge_blend: 0.0,
         bits: 8,
+        smooth: 0,
         ..Default::default()
     };
     let baked = bake(&built, &req, &out, None).unwrap();
@@ -315,7 +316,7 @@ fn the_hand_asset_is_the_tools_output() {
     assert!(same, "scenes/character/assets/hand_quick.obj differs from the tool's output: regenerate it");
 }
 
-/// Issue 65: what a shader takes from an asset bake of `hand_quick` at 32 degrees. Against the
+/// Issue 65: what a shader takes from an asset bake of `hand_quick` at 16 degrees. Against the
 /// same bake without padding or edge blending: (1) the seam along each knuckle's edge, the
 /// largest tilt of a drawn normal next to an undrawn pixel, falls from the skin's own to under
 /// `EDGE_TILT_BOUND_DEGREES`; (2) no pixel within the padding (8) of a drawn one is left flat
@@ -331,7 +332,7 @@ fn asset_maps_are_padded_faded_at_the_patch_edges_and_come_with_a_height_map() {
     let dir = std::env::temp_dir().join(format!("skinsim_hand_maps_{}", std::process::id()));
     let request = |padding: u32, edge_blend: f64, out: &str| {
         let req = BakeRequest {
-            angles: vec![32.0],
+            angles: vec![16.0],
             size: 512,
             layout: MapLayout::Asset,
             padding,
@@ -373,14 +374,14 @@ fn asset_maps_are_padded_faded_at_the_patch_edges_and_come_with_a_height_map() {
         }
     }
     println!(
-        "hand_quick asset map at 32 degrees ({w} x {h}): the largest tilt of a drawn normal at a patch's edge \
+        "hand_quick asset map at 16 degrees ({w} x {h}): the largest tilt of a drawn normal at a patch's edge \
          {seam_before:.1} deg unblended, {seam_after:.2} deg blended over 2 mm; {padded} padding pixels, \
          {left_flat} left flat"
     );
     assert!(seam_before > 5.0, "the unblended edge shows the skin's tilt: {seam_before}");
     assert!(seam_after < EDGE_TILT_BOUND_DEGREES, "{seam_after}");
     assert!(padded > 1000 && left_flat == 0, "{padded} {left_flat}");
-    let heights = image::open(dir.join("after/hand_height_00008.png")).unwrap();
+    let heights = image::open(dir.join("after/hand_height_00004.png")).unwrap();
     assert_eq!((heights.width(), heights.height(), heights.color()), (w, h, image::ColorType::L16));
     let heights = heights.to_luma16();
     assert_eq!(heights.get_pixel(0, h - 1).0[0], 32768, "0 away from the patches");
@@ -393,7 +394,7 @@ fn asset_maps_are_padded_faded_at_the_patch_edges_and_come_with_a_height_map() {
     assert!(hi - lo > 200, "the wrinkles show in the heights: {lo}..{hi}");
     let sidecar: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("after/maps.json")).unwrap()).unwrap();
-    assert_eq!(sidecar["height_range_m"].as_f64(), Some(1e-3));
+    assert_eq!(sidecar["height_range_m"].as_f64(), Some(5e-3));
     assert_eq!(sidecar["bodies"][0]["body"], "hand");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -113,15 +113,23 @@ fn run_writes_stats_recording_and_obj() {
     ] {
         assert!(last["timings_ms"][key].is_number(), "missing timing {key}");
     }
-    // The recording, read back with Rerun's decoder: each layer's mesh, the patch's scalars and
-    // every stage's timing at each of the four frames.
+    // The recording, read back with Rerun's decoder: each layer's mesh from the rest state
+    // (frame 0), the patch's scalars at each of the four frames, every stage's timing from
+    // frame 2 (frame 1's, the set-up, apart).
     let frames = skinsim_systems::log_read::read_recording(&d.join("out/recording.rrd")).unwrap().frames;
-    let stages = ["motion", "remesh", "assemble", "solve", "writeback"].map(|s| format!("/timings/{s}"));
-    let entities = ["/patches/sheet/base", "/patches/sheet/film", "/stats/sheet/energy", "/stats/sheet/residual"];
-    for entity in entities.iter().map(|e| e.to_string()).chain(stages) {
+    let stages = ["motion", "remesh", "assemble", "solve", "writeback"];
+    let logged = ["/patches/sheet/base", "/patches/sheet/film"]
+        .map(|e| (e.to_string(), 0))
+        .into_iter()
+        .chain(["/stats/sheet/energy", "/stats/sheet/residual"].map(|e| (e.to_string(), 1)))
+        .chain(stages.map(|s| (format!("/timings/{s}"), 2)))
+        .chain(stages.map(|s| (format!("/setup_timings/{s}"), 1)));
+    for (entity, first) in logged {
+        let last = if entity.starts_with("/setup") { 1 } else { 4 };
         let logged = frames.get(&entity).unwrap_or_else(|| panic!("{entity} missing from {:?}", frames.keys()));
-        assert_eq!(logged.iter().copied().collect::<Vec<_>>(), vec![1, 2, 3, 4], "{entity}");
+        assert_eq!(logged.iter().copied().collect::<Vec<_>>(), (first..=last).collect::<Vec<i64>>(), "{entity}");
     }
+    assert!(d.join("out/obj/sheet/film/00000.obj").is_file(), "the rest state as frame 0");
     let obj = std::fs::read_to_string(d.join("out/obj/sheet/film/00004.obj")).unwrap();
     // An equilateral 16 x 4 grid: 17 + 18 + 17 + 18 + 17 vertices.
     assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), 87);
@@ -380,8 +388,18 @@ fn the_recording_carries_a_layout_of_the_stages_that_run() {
     let out = skinsim().args(["run", "--quiet", "--out"]).arg(d.join("out")).arg(&s).output().unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let blueprint = skinsim_systems::log_read::read_recording(&d.join("out/recording.rrd")).unwrap().blueprint;
-    let views = ["sheet", "/patches/sheet", "sheet energy", "sheet residual", "sheet newton iterations", "/legend"];
-    for text in views.iter().chain(&["stage timings (ms)", "+ /timings/solve", "+ /timings/assemble"]) {
+    let views = [
+        "sheet",
+        "/patches/sheet",
+        "sheet energy (J)",
+        "/stats/sheet/energy",
+        "sheet log10 residual (relative)",
+        "/stats/sheet/log10_residual",
+        "sheet Newton iterations",
+        "/legend",
+        "/colour_bar",
+    ];
+    for text in views.iter().chain(&["stage timings (ms), from frame 2", "+ /timings/solve", "+ /timings/assemble"]) {
         assert!(blueprint.contains(*text), "{text} not in {blueprint:?}");
     }
     for absent in ["+ /timings/remesh", "+ /timings/anchor_walk", "+ /timings/constraint_adjust"] {
@@ -393,6 +411,11 @@ fn the_recording_carries_a_layout_of_the_stages_that_run() {
     assert_eq!(run.output().unwrap().status.code(), Some(0));
     let blueprint = skinsim_systems::log_read::read_recording(&d.join("crease/recording.rrd")).unwrap().blueprint;
     assert!(blueprint.contains("+ /timings/anchor_walk"), "{blueprint:?}");
+    // Each patch's tab is framed on the patch alone (its own origin, the body left to the
+    // patch's layers), with its anchor jumps plotted and its anchors' legend.
+    for text in ["/patches/walk", "walk anchor jumps (m)", "/stats/walk/anchors", "/anchor_legend/walk/skin"] {
+        assert!(blueprint.contains(text), "{text} not in {blueprint:?}");
+    }
 }
 
 #[test]
@@ -405,14 +428,14 @@ fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
         &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"),
     );
     let mut run = skinsim();
-    run.args(["run", "--quiet", "--no-rerun", "--export", "obj", "--export", "usd", "--out"]);
+    run.args(["run", "--quiet", "--no-rerun", "--export", "obj", "--export", "usda", "--out"]);
     let out = run.arg(d.join("out")).arg(&s).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("frame 3") && err.contains("\"sheet\""), "{err}");
-    // The USD stage is written with the frames before the failure.
+    // The USD stage is written with the frames before the failure (from the rest state, 0).
     let usd = std::fs::read_to_string(d.join("out/skinsim.usda")).unwrap();
-    assert!(usd.contains("        2: [(") && usd.contains("startTimeCode = 1"), "{usd}");
+    assert!(usd.contains("        2: [(") && usd.contains("startTimeCode = 0"), "{usd}");
     assert!(!err.contains("panicked"), "{err}");
     let stats = std::fs::read_to_string(d.join("out/stats.jsonl")).unwrap();
     let lines: Vec<serde_json::Value> = stats.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
@@ -472,7 +495,8 @@ fn analyze_reports_wavelength_and_amplitude_of_exported_frames() {
     let out = skinsim().arg("analyze").arg(d.join("out/obj/sheet/film")).output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(text.lines().filter(|l| l.trim_start().starts_with("0000")).count(), 4, "{text}");
+    // Frames 1-4 and the rest state, frame 0.
+    assert_eq!(text.lines().filter(|l| l.trim_start().starts_with("0000")).count(), 5, "{text}");
     assert!(text.contains("onset strain"), "{text}");
     let out = skinsim().arg("analyze").arg(d.join("nowhere")).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
@@ -693,4 +717,36 @@ fn blender_imports_the_usd_cache_with_its_names_fps_and_uvs() {
     let at = |i: usize, k: usize| range[i][k].as_f64().unwrap();
     assert!((at(0, 0) - 10.0).abs() < 1e-3 && (at(1, 0) - 60.0).abs() < 1e-3, "{range}");
     assert!((at(0, 1) - 116.4745).abs() < 1e-2 && (at(1, 1) - 134.0493).abs() < 1e-2, "{range}");
+}
+
+/// Issue 65: a glTF character's asset maps cover its [0, 1] atlas (they line up with the
+/// asset's other textures), the forehead drawn where the head's UVs put it.
+#[test]
+fn a_characters_asset_maps_cover_its_uv_atlas() {
+    let d = scratch("atlas");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/forehead_quick.ron");
+    let out = skinsim()
+        .arg("bake")
+        .arg(&scene)
+        .args(["--frames", "1", "--layout", "asset", "--size", "256", "--out"])
+        .arg(&d)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let sidecar: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("maps.json")).unwrap()).unwrap();
+    let body = &sidecar["bodies"][0];
+    assert_eq!(
+        (body["uv_lo"].clone(), body["uv_hi"].clone()),
+        (serde_json::json!([0.0, 0.0]), serde_json::json!([1.0, 1.0]))
+    );
+    let map = image::open(d.join("head_00001.png")).unwrap().to_rgb16();
+    assert_eq!(map.dimensions(), (256, 256));
+    // The forehead's pixels (its st in [0.769, 0.812] x [0.483, 0.551], from the USD test) are
+    // drawn: not all the flat normal there.
+    let flat = skinsim::mesh::map_buffer::encode16(glam::DVec3::Z);
+    let (x0, x1) = ((0.769 * 256.0) as u32, (0.812 * 256.0) as u32);
+    let (y0, y1) = (((1.0 - 0.551) * 256.0) as u32, ((1.0 - 0.483) * 256.0) as u32);
+    let drawn = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| *map.get_pixel(x, y) != flat);
+    assert!(drawn.count() > 100, "the forehead is drawn in the atlas");
 }

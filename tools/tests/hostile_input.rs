@@ -206,11 +206,11 @@ fn command_line_values_out_of_range_exit_2() {
     refused(&bake(&["--frames", "1", "--blend", "5"]), &["--blend"]);
     refused(&bake(&["--weights", "NaN"]), &["--weights"]);
     refused(&bake(&["--frames", "1", "--layout", "asset"]), &["--layout asset", "no patch on a body"]);
-    // (a glTF body's material space is overlapping length-true islands: refused before any run)
-    let forehead = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/character/forehead_quick.ron");
-    let mut gltf_bake = skinsim();
-    gltf_bake.arg("bake").arg(&forehead).arg("--out").arg(d.join("maps")).args(["--frames", "1", "--layout", "asset"]);
-    refused(&gltf_bake.output().unwrap(), &["--layout asset", "\"head\" is a glTF body"]);
+    refused(&bake(&["--frames", "1", "--bits", "12"]), &["--bits"]);
+    refused(&bake(&["--frames", "1", "--edge-blend", "-1"]), &["--edge-blend"]);
+    refused(&bake(&["--frames", "1", "--height-range", "0"]), &["--height-range"]);
+    refused(&bake(&["--frames", "1", "--smooth", "9"]), &["--smooth"]);
+    refused(&run(&["--colour-scale", "-1"]), &["--colour-scale"]);
     let asset =
         |extra: &[&str]| skinsim().args(["asset", "hand", "--out"]).arg(d.join("assets")).args(extra).output().unwrap();
     refused(&asset(&["--finger-cells", "100000,100000"]), &["more than 10000000 vertices"]);
@@ -248,7 +248,7 @@ fn a_rerun_into_the_same_folder_keeps_only_its_own_frames() {
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
         .collect();
-    assert_eq!(film, ["00001.obj", "mine.obj"]);
+    assert_eq!(film, ["00000.obj", "00001.obj", "mine.obj"], "the rest state and this run's frame");
     assert!(out_dir.join("notes.txt").exists());
     let stats = std::fs::read_to_string(out_dir.join("stats.jsonl")).unwrap();
     assert_eq!(stats.lines().count(), 1);
@@ -277,10 +277,11 @@ fn an_interrupted_run_says_so_keeps_its_frames_and_exits_130() {
     assert!(err.contains("interrupted after frame") && err.contains(&out_dir.display().to_string()), "{err}");
     let lines = std::fs::read_to_string(&stats).unwrap().lines().count();
     assert!((2..5000).contains(&lines), "{lines} frames");
-    // Every frame in stats.jsonl has its OBJ and its meshes in the recording, which was closed.
-    assert_eq!(files_under(&out_dir.join("obj/sheet/film")).len(), lines);
+    // Every frame in stats.jsonl has its OBJ and its meshes in the recording, which was closed,
+    // after the rest state (frame 0).
+    assert_eq!(files_under(&out_dir.join("obj/sheet/film")).len(), lines + 1);
     let recorded = recorded_frames(&out_dir.join("recording.rrd"));
-    assert_eq!(recorded, (1..=lines as i64).collect::<Vec<_>>());
+    assert_eq!(recorded, (0..=lines as i64).collect::<Vec<_>>());
 }
 
 /// Waits (at most 2 minutes) until a running scene's stats.jsonl has `frames` lines.
