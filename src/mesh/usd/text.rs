@@ -68,28 +68,39 @@ fn write_mesh(stage: &UsdStage, w: &mut impl Write, i: usize, prim: &Prim) -> st
             Attr::Counts => 1,
             _ => 3,
         };
+        // (integers flat, "0, 1, 2"; vectors as tuples, "(0, 0, 1)")
         if a.is_int() {
             while let Some((frame, v)) = r.next_ints()? {
-                write!(w, "        {frame}: [")?;
-                list(w, &v.chunks(width).collect::<Vec<_>>(), |w, c| {
-                    let s: Vec<String> = c.iter().map(|x| x.to_string()).collect();
-                    write!(w, "{}", s.join(", "))
-                })?;
-                writeln!(w, ",")?;
+                sample(w, frame, &v, width, false)?;
             }
         } else {
             while let Some((frame, v)) = r.next_floats()? {
-                write!(w, "        {frame}: [")?;
-                list(w, &v.chunks(width).collect::<Vec<_>>(), |w, c| {
-                    let s: Vec<String> = c.iter().map(|x| x.to_string()).collect();
-                    write!(w, "({})", s.join(", "))
-                })?;
-                writeln!(w, ",")?;
+                sample(w, frame, &v, width, true)?;
             }
         }
         writeln!(w, "            }}")?;
     }
     writeln!(w, "        }}")
+}
+
+/// One time sample, "        <frame>: [items],": `values` in groups of `width`, each group in
+/// parentheses when `tuples`.
+fn sample<T: std::fmt::Display>(
+    w: &mut impl Write,
+    frame: u32,
+    values: &[T],
+    width: usize,
+    tuples: bool,
+) -> std::io::Result<()> {
+    write!(w, "        {frame}: [")?;
+    list(w, &values.chunks(width).collect::<Vec<_>>(), |w, c| {
+        let s: Vec<String> = c.iter().map(|x| x.to_string()).collect();
+        match tuples {
+            true => write!(w, "({})", s.join(", ")),
+            false => write!(w, "{}", s.join(", ")),
+        }
+    })?;
+    writeln!(w, ",")
 }
 
 /// Writes the items of `items` comma-separated, then "]".
