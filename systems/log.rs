@@ -12,7 +12,7 @@ use skinsim::mesh::shading::{self, ColourBy};
 use skinsim::mesh::usd::{LayerFrame, UsdStage};
 use skinsim::model::*;
 
-use crate::log_mesh::{log_material_mesh, log_mesh, Drawing};
+use crate::log_mesh::{log_material_mesh, log_mesh, log_stats, Drawing};
 use crate::render_mesh::{render_mesh, RenderMesh};
 
 /// Where Rerun data goes (a file, a spawned viewer, a connection, or memory in tests).
@@ -39,18 +39,6 @@ pub struct UsdExport(pub UsdStage);
 
 pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>, usd: Option<Res<UsdExport>>) -> bool {
     sink.is_some() || obj.is_some() || usd.is_some()
-}
-
-/// The diverging palette from -1 (left) to +1 (right), 256 x 16 pixels.
-fn colour_bar() -> rerun::Image {
-    let (w, h) = (256u32, 16u32);
-    let row: Vec<u8> = (0..w)
-        .flat_map(|x| {
-            let c = shading::diverging_colour(2.0 * x as f64 / (w - 1) as f64 - 1.0, 1.0);
-            [c[0], c[1], c[2]]
-        })
-        .collect();
-    rerun::Image::from_rgb24(row.repeat(h as usize), [w, h])
 }
 
 #[derive(Default)]
@@ -101,7 +89,8 @@ pub fn log_frame(
             rec.set_time_sequence("frame", 0);
             rec.set_duration_secs("sim_time", 0.0);
             if by != ColourBy::Layer {
-                let _ = rec.log_static(COLOUR_BAR, &colour_bar());
+                let _ =
+                    rec.log_static(COLOUR_BAR, &rerun::Image::from_rgb24(shading::colour_bar_rgb(256, 16), [256, 16]));
             }
         }
         for (patch, patch_layers) in &ordered {
@@ -125,14 +114,8 @@ pub fn log_frame(
                     rm.vertices.iter().map(|e| vertices.get(*e).map(|v| v.2 .0).unwrap_or(DVec2::ZERO)).collect();
                 let normals = shading::vertex_normals(&pos, &rm.tris);
                 if let Some(UsdExport(stage)) = usd.as_deref_mut() {
-                    // `st`: the asset's own UVs where the layer has them (a character's), else its
-                    // material coordinates in the scene's length unit (an OBJ body's `vt`).
-                    let asset: Option<Vec<DVec2>> =
-                        rm.vertices.iter().map(|e| asset_uv.get(*e).ok().map(|u| u.0)).collect();
-                    let (from_asset, st) = match asset {
-                        Some(st) => (true, st),
-                        None => (false, uv.iter().map(|u| *u / stage.st_unit()).collect()),
-                    };
+                    let asset = rm.vertices.iter().map(|e| asset_uv.get(*e).ok().map(|u| u.0)).collect();
+                    let (from_asset, st) = stage.st(asset, &uv);
                     let f = LayerFrame {
                         positions: &pos,
                         normals: &normals,
@@ -159,11 +142,8 @@ pub fn log_frame(
                     }
                 }
                 if let Some(ObjExport(dir)) = obj.as_deref() {
-                    let folder = dir.join("obj").join(&patch.name).join(&layer.name);
-                    let file = folder.join(format!("{frame:05}.obj"));
-                    let res = std::fs::create_dir_all(&folder)
-                        .and_then(|_| mesh::obj::write(&file, &pos, &uv, &normals, &rm.tris));
-                    if let Err(e) = res {
+                    let at = (patch.name.as_str(), layer.name.as_str(), frame);
+                    if let Err((file, e)) = mesh::obj::write_frame(dir, at, &pos, &uv, &normals, &rm.tris) {
                         let (file, reason) = (file.display().to_string(), e.to_string());
                         failure.0.get_or_insert(Failure::Output { file, reason });
                     }
@@ -181,22 +161,6 @@ pub fn log_frame(
             let _ = rec.log(LEGEND, &rerun::TextDocument::from_markdown(text.clone()));
             cache.legend = text;
         }
-        for p in &report.patches {
-            let base = format!("stats/{}", p.name);
-            let _ = rec.log(format!("{base}/energy"), &rerun::Scalars::new([p.outcome.energy]));
-            let _ = rec.log(format!("{base}/newton_iterations"), &rerun::Scalars::new([p.outcome.iterations as f64]));
-            let _ = rec.log(format!("{base}/residual"), &rerun::Scalars::new([p.outcome.residual]));
-            // (the residual spans decades: plotted as its log10)
-            let log10 = p.outcome.residual.max(1e-300).log10();
-            let _ = rec.log(format!("{base}/log10_residual"), &rerun::Scalars::new([log10]));
-        }
-        // Frame 1's timings hold the set-up (analyses, first factorizations) and would flatten
-        // the plot of the others: they go under setup_timings, out of the plot.
-        let root = if clock.frame <= 1 { "setup_timings" } else { "timings" };
-        for stage in Stage::ALL {
-            if stage != Stage::Log {
-                let _ = rec.log(format!("{root}/{}", stage.key()), &rerun::Scalars::new([timings.get(stage)]));
-            }
-        }
+        log_stats(rec, &report, &timings, clock.frame);
     }
 }

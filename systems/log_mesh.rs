@@ -120,6 +120,29 @@ fn colours(
     }
 }
 
+/// Each patch's energy, Newton iterations and residual (also as its log10: it spans decades)
+/// under stats/<patch>, and the stage timings: frame 1's, which hold the set-up (analyses, first
+/// factorizations) and would flatten the plot of the others, under setup_timings.
+pub(crate) fn log_stats(
+    rec: &rerun::RecordingStream,
+    report: &skinsim::model::FrameReport,
+    timings: &skinsim::model::Timings,
+    frame: u32,
+) {
+    for p in &report.patches {
+        let base = format!("stats/{}", p.name);
+        let o = &p.outcome;
+        let _ = rec.log(format!("{base}/energy"), &rerun::Scalars::new([o.energy]));
+        let _ = rec.log(format!("{base}/newton_iterations"), &rerun::Scalars::new([o.iterations as f64]));
+        let _ = rec.log(format!("{base}/residual"), &rerun::Scalars::new([o.residual]));
+        let _ = rec.log(format!("{base}/log10_residual"), &rerun::Scalars::new([o.residual.max(1e-300).log10()]));
+    }
+    let root = if frame <= 1 { "setup_timings" } else { "timings" };
+    for stage in skinsim::model::Stage::ALL.into_iter().filter(|s| *s != skinsim::model::Stage::Log) {
+        let _ = rec.log(format!("{root}/{}", stage.key()), &rerun::Scalars::new([timings.get(stage)]));
+    }
+}
+
 /// Three significant digits, no exponent for the usual sizes ("411", "2.43", "0.0123").
 fn significant(x: f64) -> String {
     let digits = (2 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;

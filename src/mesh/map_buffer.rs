@@ -7,6 +7,10 @@
 use glam::{DVec2, DVec3};
 use image::{ImageBuffer, Luma, Rgb};
 
+use super::locate::XyLocator;
+use super::shading::vertex_normals;
+use super::wrinkle_map::tangent_frames;
+
 /// The pixels of a map over the UV rectangle [lo, hi]: row 0 at max v, texels square in UV.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MapGrid {
@@ -148,6 +152,84 @@ impl<const N: usize> MapBuffer<N> {
     pub fn clear_uncovered(&mut self) {
         let fill = self.fill;
         self.values.iter_mut().zip(&self.covered).filter(|(_, c)| !**c).for_each(|(v, _)| *v = fill);
+    }
+}
+
+/// A surface at the current frame and at rest: positions, rest positions, triangles.
+#[derive(Clone, Copy)]
+pub struct Surface<'a> {
+    pub pos: &'a [DVec3],
+    pub rest: &'a [DVec3],
+    pub faces: &'a [[u32; 3]],
+}
+
+impl<'a> Surface<'a> {
+    pub fn of(pos: &'a [DVec3], rest: &'a [DVec3], faces: &'a [[u32; 3]]) -> Self {
+        Surface { pos, rest, faces }
+    }
+}
+
+/// Where each point of a patch lies on its body, by UV: the body's vertex of the same UV (a
+/// skin cut from the body), else the body's face over it in UV (a refined skin); and the
+/// body's tangent frames (T along +u, N its normal) and normals at rest there.
+pub struct BodyField<'a> {
+    body: Surface<'a>,
+    frames: Vec<glam::DMat3>,
+    rest_normals: Vec<DVec3>,
+    at_uv: std::collections::HashMap<[u64; 2], usize>,
+    face_of: Vec<u32>,
+    uv3: Vec<DVec3>,
+}
+
+impl<'a> BodyField<'a> {
+    /// `uv`: the body's UVs, per vertex.
+    pub fn new(body: Surface<'a>, uv: &[DVec2]) -> Self {
+        let normals = vertex_normals(body.pos, body.faces);
+        let frames = tangent_frames(body.pos, uv, body.faces, &normals);
+        let rest_normals = vertex_normals(body.rest, body.faces);
+        let at_uv = uv.iter().enumerate().map(|(i, u)| (u.to_array().map(f64::to_bits), i)).collect();
+        let mut face_of = vec![u32::MAX; uv.len()];
+        for (f, t) in body.faces.iter().enumerate() {
+            t.iter().for_each(|&v| face_of[v as usize] = f as u32);
+        }
+        let uv3 = uv.iter().map(|u| u.extend(0.0)).collect();
+        BodyField { body, frames, rest_normals, at_uv, face_of, uv3 }
+    }
+
+    /// For each vertex of `skin` (UVs `uv`, in the body's layout): its normal in the body's
+    /// tangent frame there (the world normal where it lies on no body face) and its height over
+    /// the body along the body's normal, less that height at rest (the wrinkle's displacement).
+    pub fn tangent_normals_and_heights(&self, skin: Surface, uv: &[DVec2]) -> (Vec<DVec3>, Vec<f64>) {
+        let locator = XyLocator::new(&self.uv3, self.body.faces);
+        let normals = vertex_normals(skin.pos, skin.faces);
+        let b = self.body;
+        let mut tangent = Vec::with_capacity(uv.len());
+        let mut height = Vec::with_capacity(uv.len());
+        for (i, u) in uv.iter().enumerate() {
+            let under = match self.at_uv.get(&u.to_array().map(f64::to_bits)) {
+                Some(&v) if self.face_of[v] != u32::MAX => {
+                    let f = self.face_of[v] as usize;
+                    let w: [f64; 3] = std::array::from_fn(|k| (b.faces[f][k] as usize == v) as u8 as f64);
+                    Some((f, w))
+                }
+                _ => locator.locate(u.extend(0.0)),
+            };
+            let Some((f, w)) = under else {
+                tangent.push(normals[i]);
+                height.push(0.0);
+                continue;
+            };
+            let mix = |v: &dyn Fn(usize) -> DVec3| (0..3).map(|k| w[k] * v(b.faces[f][k] as usize)).sum::<DVec3>();
+            let n = mix(&|v| self.frames[v].z_axis).normalize_or(DVec3::Z);
+            let t = mix(&|v| self.frames[v].x_axis);
+            let t = (t - n * t.dot(n)).normalize_or(n.any_orthonormal_vector());
+            let frame = glam::DMat3::from_cols(t, n.cross(t), n);
+            tangent.push(frame.transpose() * normals[i]);
+            let n0 = mix(&|v| self.rest_normals[v]).normalize_or(DVec3::Z);
+            let (x, x0) = (mix(&|v| b.pos[v]), mix(&|v| b.rest[v]));
+            height.push((skin.pos[i] - x).dot(n) - (skin.rest[i] - x0).dot(n0));
+        }
+        (tangent, height)
     }
 }
 

@@ -176,6 +176,21 @@ pub fn write(
     w.flush()
 }
 
+/// Writes a frame of a layer as `dir`/obj/<patch>/<layer>/<frame, 5 digits>.obj (`write`),
+/// making the folders; returns the file's path with the error.
+pub fn write_frame(
+    dir: &Path,
+    (patch, layer, frame): (&str, &str, u32),
+    positions: &[DVec3],
+    uv: &[DVec2],
+    normals: &[DVec3],
+    faces: &[[u32; 3]],
+) -> Result<(), (std::path::PathBuf, std::io::Error)> {
+    let folder = dir.join("obj").join(patch).join(layer);
+    let file = folder.join(format!("{frame:05}.obj"));
+    std::fs::create_dir_all(&folder).and_then(|_| write(&file, positions, uv, normals, faces)).map_err(|e| (file, e))
+}
+
 /// Removes the OBJ frames an earlier run wrote under `dir` (obj/<patch>/<layer>/<5 digits>.obj,
 /// and the folders that leaves empty), so that a rerun's folder holds only its own frames;
 /// nothing else is touched.

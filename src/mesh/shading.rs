@@ -203,6 +203,18 @@ pub fn running_scale(previous: f64, values: &[f64]) -> f64 {
     previous.max(*p98)
 }
 
+/// The diverging palette from -1 (left) to +1 (right) as `width` x `height` RGB bytes, row by
+/// row: the viewer's colour bar.
+pub fn colour_bar_rgb(width: u32, height: u32) -> Vec<u8> {
+    let row: Vec<u8> = (0..width)
+        .flat_map(|x| {
+            let c = diverging_colour(2.0 * x as f64 / (width.max(2) - 1) as f64 - 1.0, 1.0);
+            [c[0], c[1], c[2]]
+        })
+        .collect();
+    row.repeat(height as usize)
+}
+
 /// The colour of the `index`th layer of a patch (a fixed palette, repeating after eight).
 pub fn layer_colour(index: usize) -> [u8; 4] {
     const PALETTE: [[u8; 3]; 8] = [

@@ -14,10 +14,11 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec2, DVec3};
 use image::RgbImage;
-use skinsim::mesh::locate::XyLocator;
-use skinsim::mesh::map_buffer::{boundary_distances, fade, height_image16, normal_image16, MapBuffer, MapGrid};
+use skinsim::mesh::map_buffer::{
+    boundary_distances, fade, height_image16, normal_image16, BodyField, MapBuffer, MapGrid, Surface,
+};
 use skinsim::mesh::shading::vertex_normals;
-use skinsim::mesh::wrinkle_map::{blend, draw_normals, encode, tangent_frames, uv_problems};
+use skinsim::mesh::wrinkle_map::{blend, draw_normals, encode, uv_problems};
 use skinsim::model::{Interpolation, Keyframes, LayerKind};
 use skinsim::scene::built::BuiltDriver;
 use skinsim::scene::BuiltScene;
@@ -235,7 +236,7 @@ pub fn bake(
                     // edge, interpolated; then faded by that distance (per pixel, as fine as the
                     // map), so that the patch meets the body's unwrinkled surface at its edge.
                     let mut drawn = MapBuffer::new(grid, [0.0, 0.0, 1.0, 0.0, f64::INFINITY]);
-                    let under = BodyField::new(&body, &body_uv);
+                    let under = BodyField::new(Surface::of(&body.pos, &body.rest, &body.faces), &body_uv);
                     for (patch, layer, _) in layers.iter().filter(|(_, _, b)| b.as_ref() == Some(target)) {
                         let skin = sim.layer_snapshot(patch, layer);
                         let uv = asset_uv(&skin, unit);
@@ -260,7 +261,8 @@ pub fn bake(
                                 coarse
                             }
                         };
-                        let (n, h) = under.tangent_normals_and_heights(&skin, &uv, &skin.faces);
+                        let surface = Surface::of(&skin.pos, &skin.rest, &skin.faces);
+                        let (n, h) = under.tangent_normals_and_heights(surface, &uv);
                         let values: Vec<[f64; 5]> =
                             (0..n.len()).map(|i| [n[i].x, n[i].y, n[i].z, h[i], d[i].min(FAR)]).collect();
                         drawn.draw(&uv, &skin.faces, &values);
@@ -412,73 +414,6 @@ struct DrawnSkin {
 /// material coordinates in the scene's length unit (an OBJ body's `vt`).
 fn asset_uv(s: &SurfaceSnapshot, unit: f64) -> Vec<DVec2> {
     s.asset_uv.clone().unwrap_or_else(|| s.uv.iter().map(|u| *u / unit).collect())
-}
-
-/// Where each point of a patch lies on its body, by UV: the body's vertex of the same UV (a
-/// skin cut from the body), else the body's face over it in UV (a refined skin).
-struct BodyField<'a> {
-    body: &'a SurfaceSnapshot,
-    frames: Vec<glam::DMat3>,
-    rest_normals: Vec<DVec3>,
-    at_uv: std::collections::HashMap<[u64; 2], usize>,
-    face_of: Vec<u32>,
-    uv3: Vec<DVec3>,
-}
-
-impl<'a> BodyField<'a> {
-    fn new(body: &'a SurfaceSnapshot, uv: &[DVec2]) -> Self {
-        let normals = vertex_normals(&body.pos, &body.faces);
-        let frames = tangent_frames(&body.pos, uv, &body.faces, &normals);
-        let rest_normals = vertex_normals(&body.rest, &body.faces);
-        let at_uv = uv.iter().enumerate().map(|(i, u)| (u.to_array().map(f64::to_bits), i)).collect();
-        let mut face_of = vec![u32::MAX; uv.len()];
-        for (f, t) in body.faces.iter().enumerate() {
-            t.iter().for_each(|&v| face_of[v as usize] = f as u32);
-        }
-        let uv3 = uv.iter().map(|u| u.extend(0.0)).collect();
-        BodyField { body, frames, rest_normals, at_uv, face_of, uv3 }
-    }
-
-    /// For each vertex of `skin` (UVs `uv`): its normal in the body's tangent frame there (the
-    /// world normal where it lies on no body face) and its height over the body along the
-    /// body's normal, less that height at rest (the wrinkle's displacement).
-    fn tangent_normals_and_heights(
-        &self,
-        skin: &SurfaceSnapshot,
-        uv: &[DVec2],
-        faces: &[[u32; 3]],
-    ) -> (Vec<DVec3>, Vec<f64>) {
-        let locator = XyLocator::new(&self.uv3, &self.body.faces);
-        let normals = vertex_normals(&skin.pos, faces);
-        let b = self.body;
-        let mut tangent = Vec::with_capacity(uv.len());
-        let mut height = Vec::with_capacity(uv.len());
-        for (i, u) in uv.iter().enumerate() {
-            let under = match self.at_uv.get(&u.to_array().map(f64::to_bits)) {
-                Some(&v) if self.face_of[v] != u32::MAX => {
-                    let f = self.face_of[v] as usize;
-                    let w: [f64; 3] = std::array::from_fn(|k| (b.faces[f][k] as usize == v) as u8 as f64);
-                    Some((f, w))
-                }
-                _ => locator.locate(u.extend(0.0)),
-            };
-            let Some((f, w)) = under else {
-                tangent.push(normals[i]);
-                height.push(0.0);
-                continue;
-            };
-            let mix = |v: &dyn Fn(usize) -> DVec3| (0..3).map(|k| w[k] * v(b.faces[f][k] as usize)).sum::<DVec3>();
-            let n = mix(&|v| self.frames[v].z_axis).normalize_or(DVec3::Z);
-            let t = mix(&|v| self.frames[v].x_axis);
-            let t = (t - n * t.dot(n)).normalize_or(n.any_orthonormal_vector());
-            let frame = glam::DMat3::from_cols(t, n.cross(t), n);
-            tangent.push(frame.transpose() * normals[i]);
-            let n0 = mix(&|v| self.rest_normals[v]).normalize_or(DVec3::Z);
-            let (x, x0) = (mix(&|v| b.pos[v]), mix(&|v| b.rest[v]));
-            height.push((skin.pos[i] - x).dot(n) - (skin.rest[i] - x0).dot(n0));
-        }
-        (tangent, height)
-    }
 }
 
 /// `maps.json` beside asset maps: what their pixels mean (the UV rectangle, the encodings, the

@@ -152,6 +152,15 @@ impl UsdStage {
         self.options.st_unit
     }
 
+    /// A layer's `st`: the asset's own UVs where every vertex has them (a character's; true),
+    /// else its material coordinates `uv` (m) in the scene's length unit (an OBJ body's `vt`).
+    pub fn st(&self, asset: Option<Vec<DVec2>>, uv: &[DVec2]) -> (bool, Vec<DVec2>) {
+        match asset {
+            Some(st) => (true, st),
+            None => (false, uv.iter().map(|u| *u / self.options.st_unit).collect()),
+        }
+    }
+
     /// The stage's path (written by `finish`).
     pub fn path(&self) -> &Path {
         &self.path
