@@ -23,6 +23,12 @@ pub struct RecordingIndex {
     pub colours: BTreeMap<String, Vec<u32>>,
     /// Every text of the blueprints sent (view names, origins, content queries).
     pub blueprint: BTreeSet<String>,
+    /// Blueprint entity (`/view/<id>`, `/view/<id>/EyeControls3D`, ...) -> component -> its
+    /// texts.
+    pub blueprint_texts: BTreeMap<String, BTreeMap<String, Vec<String>>>,
+    /// Blueprint entity -> component -> its numbers, flattened (an eye's position: 3 floats; a
+    /// flag: 0 or 1).
+    pub blueprint_numbers: BTreeMap<String, BTreeMap<String, Vec<f64>>>,
     /// Entity path -> the last text document logged to it (the colour legend).
     pub documents: BTreeMap<String, String>,
     /// Entity path -> the radii it was last logged with (negative: UI points, Rerun's encoding).
@@ -44,8 +50,18 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
         if let rerun::log::LogMsg::ArrowMsg(store, arrow) = msg {
             let chunk = rerun::log::Chunk::from_arrow_msg(&arrow)?;
             if store.kind() == rerun::StoreKind::Blueprint {
-                for column in chunk.components().0.values() {
-                    index.blueprint.extend(texts(&column.list_array));
+                let entity = chunk.entity_path().to_string();
+                for (field, column) in chunk.components().0.iter() {
+                    let t = texts(&column.list_array);
+                    index.blueprint.extend(t.iter().cloned());
+                    let field = field.as_str().to_string();
+                    if !t.is_empty() {
+                        index.blueprint_texts.entry(entity.clone()).or_default().insert(field.clone(), t);
+                    }
+                    let n = floats(column.list_array.values().as_ref());
+                    if !n.is_empty() {
+                        index.blueprint_numbers.entry(entity.clone()).or_default().insert(field, n);
+                    }
                 }
                 continue;
             }
@@ -94,6 +110,24 @@ pub fn read_recording(path: &Path) -> Result<RecordingIndex, Box<dyn std::error:
         }
     }
     Ok(index)
+}
+
+/// The floats of an array, through fixed-size lists (a Position3D's three), booleans as 0 and
+/// 1; none for others.
+fn floats(values: &dyn rerun::external::arrow::array::Array) -> Vec<f64> {
+    use rerun::external::arrow::array::{BooleanArray, FixedSizeListArray, Float32Array, Float64Array};
+    let any = values.as_any();
+    if let Some(b) = any.downcast_ref::<BooleanArray>() {
+        b.iter().map(|x| f64::from(u8::from(x == Some(true)))).collect()
+    } else if let Some(f) = any.downcast_ref::<Float32Array>() {
+        f.values().iter().map(|x| f64::from(*x)).collect()
+    } else if let Some(f) = any.downcast_ref::<Float64Array>() {
+        f.values().to_vec()
+    } else if let Some(l) = any.downcast_ref::<FixedSizeListArray>() {
+        floats(l.values().as_ref())
+    } else {
+        vec![]
+    }
 }
 
 /// The strings of a text component's column (none for other types).

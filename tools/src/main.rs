@@ -550,7 +550,8 @@ fn run(args: RunArgs) -> ExitCode {
                 .iter()
                 .filter(|(k, v)| !["total", "log"].contains(&k.as_str()) && v.as_f64() > Some(0.0));
             let stages: Vec<String> = ran.map(|(k, _)| k.clone()).collect();
-            let _ = skinsim_tools::layout::layout(&scene, &stages).send(rec, Default::default());
+            let _ = skinsim_tools::layout::layout(&scene, &stages).send(rec);
+            let _ = skinsim_tools::layout::log_stage_colours(rec, &stages);
         }
         // The recording first, then the stats line: a killed run's stats.jsonl never names a
         // frame its recording lacks.

@@ -416,6 +416,47 @@ fn the_recording_carries_a_layout_of_the_stages_that_run() {
     for text in ["/patches/walk", "walk anchor jumps (m)", "/stats/walk/anchors", "/anchor_legend/walk/skin"] {
         assert!(blueprint.contains(text), "{text} not in {blueprint:?}");
     }
+    // One eye per tab, set from its patch's rest bounds: it looks at their centre, and sees
+    // every rest vertex within 25 degrees of its line of sight (the view opens about 50).
+    let index = skinsim_systems::log_read::read_recording(&d.join("crease/recording.rrd")).unwrap();
+    let built = skinsim::scene::load(&crease).unwrap();
+    let eyes: Vec<&String> = index.blueprint_numbers.keys().filter(|e| e.ends_with("/EyeControls3D")).collect();
+    assert_eq!(eyes.len(), built.patches.len() + built.bodies.len(), "{eyes:?}");
+    for p in &built.patches {
+        let view = index.blueprint_texts.iter().find(|(_, c)| {
+            c.get("ViewBlueprint:display_name") == Some(&vec![p.name.clone()])
+                && c.get("ViewBlueprint:class_identifier") == Some(&vec!["3D".to_string()])
+        });
+        let (view, _) = view.unwrap_or_else(|| panic!("no 3D view named {}", p.name));
+        let eye = &index.blueprint_numbers[&format!("{view}/EyeControls3D")];
+        let v = |k: &str| glam::DVec3::from_slice(&eye[&format!("EyeControls3D:{k}")]);
+        let (position, target) = (v("position"), v("look_target"));
+        let skip = usize::from(p.body.is_some());
+        let points: Vec<glam::DVec3> = p.layers.iter().skip(skip).flat_map(|l| l.mesh.rest().to_vec()).collect();
+        let (lo, hi) =
+            points.iter().fold((glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+        assert!((target - 0.5 * (lo + hi)).length() < 1e-6, "{}: {target} against {lo} {hi}", p.name);
+        let sight = (target - position).normalize();
+        for x in &points {
+            let angle = (*x - position).normalize().dot(sight).clamp(-1.0, 1.0).acos().to_degrees();
+            assert!(angle < 25.0, "{}: a vertex {angle:.1} degrees off the line of sight", p.name);
+        }
+    }
+    // No plot's legend lies over its data: every plot's legend is hidden (one series, named by
+    // the title), and the timings' lines are keyed by colour in a document of their own.
+    let plots: Vec<&String> = index
+        .blueprint_texts
+        .iter()
+        .filter(|(_, c)| c.get("ViewBlueprint:class_identifier") == Some(&vec!["TimeSeries".to_string()]))
+        .map(|(e, _)| e)
+        .collect();
+    assert!(plots.len() >= 7, "{plots:?}");
+    for view in plots {
+        let legend = &index.blueprint_numbers.get(&format!("{view}/PlotLegend"));
+        assert!(legend.is_some_and(|l| l.get("PlotLegend:visible") == Some(&vec![0.0])), "{view}: {legend:?}");
+    }
+    let key = &index.documents["/timings_key"];
+    assert!(key.contains("anchor_walk **") && key.contains("solve **"), "{key}");
 }
 
 #[test]
