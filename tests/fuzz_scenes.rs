@@ -2,7 +2,9 @@
 //! replaced by hostile values, lines deleted or repeated, the text cut short); each mutant goes
 //! through load -> build and, when it loads and is small, spawn and one frame. No stage may
 //! panic (proptest reports and shrinks any mutant that does). The case count is bounded for the
-//! suite (`SKINSIM_FUZZ_CASES`, default 400); a longer run is
+//! suite (`SKINSIM_FUZZ_CASES`, default 400); a mutant that loads and steps a frame without
+//! failing must leave every position finite (issue 66: `check` accepts only what `run` can do).
+//! A longer run is
 //! `SKINSIM_FUZZ_CASES=20000 cargo test --release --test fuzz_scenes` (another seed:
 //! `SKINSIM_FUZZ_SEED`). Crashes it found became the cases of `tests/hostile_input.rs` and
 //! `elbow_bends_both_ways` below.
@@ -41,6 +43,9 @@ const NUMBERS: &[&str] = &[
     "0.5",
     "1.0",
     "2",
+    // (issue 66: past the bound every number keeps, and a coarsening step of 1e-12)
+    "1e31",
+    "1e-12",
 ];
 const STRINGS: &[&str] = &["", "../../x", "/abs/path", "a/b", "..", "nosuch", "base", "skin", "\u{feff}"];
 
@@ -190,6 +195,14 @@ proptest! {
                 }
                 let mut sim = Simulation::new(&built);
                 sim.step();
+                // Issue 66: what `check` accepts, `run` computes: a frame either fails, saying so
+                // (exit 1 with the frame and patch), or leaves every position finite (a NaN
+                // offset passed `check` and wrote NaN frames).
+                if sim.failure().is_none() {
+                    let mut q = sim.world.query::<&skinsim::model::Position>();
+                    let bad = q.iter(&sim.world).find(|p| !p.0.is_finite());
+                    prop_assert!(bad.is_none(), "{}: a position {:?} after frame 1", path.display(), bad);
+                }
             }
         }
     }

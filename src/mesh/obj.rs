@@ -42,22 +42,25 @@ pub struct FaceGroups {
     pub of_face: Vec<u32>,
 }
 
-/// `load`, and which `o` / `g` group each face belongs to.
+/// `load`, and which `o` / `g` group each face belongs to. The file is one vertex array whatever
+/// its groups: a vertex two groups share stays one vertex (tobj would load each group as a model
+/// of its own, duplicating it), so the groups are read here and tobj sees none.
 pub(crate) fn load_groups(path: &Path, to_metres: f64) -> Result<(SurfaceMesh, FaceGroups), ObjError> {
-    scan(path)?;
+    let text = std::fs::read_to_string(path)?;
+    let scanned = scan(&text)?;
+    // Groups and materials start new tobj models: blanked (lines kept, so tobj's count stays).
+    let flat: String = text
+        .lines()
+        .map(|l| match l.split_whitespace().next() {
+            Some("o" | "g" | "usemtl" | "mtllib") => "",
+            _ => l,
+        })
+        .flat_map(|l| [l, "\n"])
+        .collect();
     let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
-    let (models, _) = tobj::load_obj(path, &opts)?;
+    let (models, _) = tobj::load_obj_buf(&mut flat.as_bytes(), &opts, |_| Ok(Default::default()))?;
     let mut m = SurfaceMesh::default();
-    let mut groups = FaceGroups::default();
     for model in models {
-        let group = match groups.names.iter().position(|n| *n == model.name) {
-            Some(g) => g,
-            None => {
-                groups.names.push(model.name.clone());
-                groups.names.len() - 1
-            }
-        };
-        groups.of_face.extend(std::iter::repeat_n(group as u32, model.mesh.indices.len() / 3));
         let mesh = model.mesh;
         let base = m.rest.len() as u32;
         let nv = mesh.positions.len() / 3;
@@ -75,7 +78,10 @@ pub(crate) fn load_groups(path: &Path, to_metres: f64) -> Result<(SurfaceMesh, F
         }
         m.faces.extend(mesh.indices.chunks_exact(3).map(|f| [f[0] + base, f[1] + base, f[2] + base]));
     }
-    Ok((m, groups))
+    // tobj fans a polygon of n corners into n - 2 triangles, in the file's order.
+    let of_face: Vec<u32> = scanned.faces.iter().flat_map(|&(g, n)| std::iter::repeat_n(g, n - 2)).collect();
+    debug_assert_eq!(of_face.len(), m.faces.len());
+    Ok((m, FaceGroups { names: scanned.groups, of_face }))
 }
 
 /// Whether the file states texture coordinates (`vt` lines).
@@ -83,10 +89,19 @@ pub(crate) fn has_texture_coordinates(path: &Path) -> std::io::Result<bool> {
     Ok(std::fs::read_to_string(path)?.lines().any(|l| l.split_whitespace().next() == Some("vt")))
 }
 
+/// The groups an OBJ's faces are in: `groups`, the names of the `o` / `g` groups that hold a
+/// face (faces before any: "unnamed_object", as tobj names them); `faces`, per face in the
+/// file's order, its group and its number of corners.
+struct Scanned {
+    groups: Vec<String>,
+    faces: Vec<(u32, usize)>,
+}
+
 /// tobj drops vertices no face uses, reads NaN and infinity as numbers and reports malformed
 /// faces without a line; a mesh with any of these (or with no face) is refused, with the line.
-fn scan(path: &Path) -> Result<(), ObjError> {
-    let text = std::fs::read_to_string(path)?;
+fn scan(text: &str) -> Result<Scanned, ObjError> {
+    let mut scanned = Scanned { groups: vec![], faces: vec![] };
+    let mut group = "unnamed_object".to_string();
     let mut count = 0usize;
     let mut used = Vec::new();
     // (a face may name a vertex defined after it: indices are checked at the end)
@@ -111,6 +126,10 @@ fn scan(path: &Path) -> Result<(), ObjError> {
             Some("vt") if !finite(it.clone(), 2) => {
                 return Err(ObjError::NotFinite { line: line_no, keyword: "vt", count: 2 });
             }
+            Some("o" | "g") => {
+                let name = line.trim_start()[1..].trim();
+                group = if name.is_empty() { "unnamed_object".to_string() } else { name.to_string() };
+            }
             Some("f") => {
                 faces += 1;
                 let mut n = 0;
@@ -130,6 +149,14 @@ fn scan(path: &Path) -> Result<(), ObjError> {
                 if n < 3 {
                     return Err(ObjError::ShortFace { line: line_no });
                 }
+                let g = match scanned.groups.iter().position(|x| *x == group) {
+                    Some(g) => g,
+                    None => {
+                        scanned.groups.push(group.clone());
+                        scanned.groups.len() - 1
+                    }
+                };
+                scanned.faces.push((g as u32, n));
             }
             _ => {}
         }
@@ -145,7 +172,7 @@ fn scan(path: &Path) -> Result<(), ObjError> {
     }
     match used.iter().position(|&line| line != 0) {
         Some(vertex) => Err(ObjError::Unreferenced { vertex, line: used[vertex] }),
-        None => Ok(()),
+        None => Ok(scanned),
     }
 }
 
@@ -226,4 +253,57 @@ pub fn clear_frames(dir: &std::path::Path) -> std::io::Result<()> {
     }
     let _ = std::fs::remove_dir(&obj);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file(name: &str, text: &str) -> std::path::PathBuf {
+        let d = std::env::temp_dir().join(format!("skinsim-obj-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    /// A 3 x 3 vertex sheet: its left column of quads in group `a`, its right one in `b`, with a
+    /// material switch inside `b` (which also starts a tobj model).
+    const TWO_GROUPS: &str = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nv 1 1 0\nv 2 1 0\nv 0 2 0\nv 1 2 0\nv 2 2 0\n\
+        g a\nf 1 2 5 4\nf 4 5 8 7\ng b\nusemtl skin\nf 2 3 6 5\nusemtl other\nf 5 6 9 8\n";
+
+    #[test]
+    fn groups_share_their_vertices() {
+        let (m, groups) = load_groups(&file("two.obj", TWO_GROUPS), 1.0).unwrap();
+        assert_eq!(m.rest.len(), 9, "one vertex array across groups");
+        assert_eq!(m.faces.len(), 8);
+        assert_eq!(groups.names, ["a", "b"]);
+        assert_eq!(groups.of_face, [0, 0, 0, 0, 1, 1, 1, 1]);
+        // Each face's group holds its corners: group a's faces lie at x <= 1, b's at x >= 1.
+        for (f, g) in m.faces.iter().zip(&groups.of_face) {
+            let xs = f.map(|i| m.rest[i as usize].x);
+            assert!(xs.iter().all(|&x| if *g == 0 { x <= 1.0 } else { x >= 1.0 }), "{f:?} in {g}");
+        }
+        // The sheet is connected: every vertex but the 4 corners is in more than one triangle
+        // and the middle column belongs to both groups.
+        let middle = m.rest.iter().position(|p| *p == DVec3::new(1.0, 1.0, 0.0)).unwrap() as u32;
+        let of_middle: std::collections::BTreeSet<u32> =
+            m.faces.iter().zip(&groups.of_face).filter(|(f, _)| f.contains(&middle)).map(|(_, g)| *g).collect();
+        assert_eq!(of_middle.len(), 2);
+        assert!(crate::mesh::topology::check_surface(&m).is_ok());
+    }
+
+    #[test]
+    fn a_face_repeated_in_another_group_is_caught() {
+        let text = format!("{TWO_GROUPS}g c\nf 1 2 5 4\n");
+        let m = load(&file("dup.obj", &text), 1.0).unwrap();
+        assert!(crate::mesh::topology::check_surface(&m).is_err(), "the repeat in group c is a duplicate face");
+        // and a fin that a third group hangs on an edge of the sheet is a non-manifold edge
+        let text = format!("{TWO_GROUPS}v 1 1 1\ng fin\nf 2 5 10\n");
+        let m = load(&file("fin.obj", &text), 1.0).unwrap();
+        assert!(matches!(
+            crate::mesh::topology::check_surface(&m),
+            Err(crate::mesh::topology::MeshError::NonManifold { count: 3, .. })
+        ));
+    }
 }

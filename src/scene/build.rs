@@ -17,13 +17,19 @@ pub(crate) const MAX_SCENE_BYTES: u64 = 16 << 20;
 
 /// Reads, validates and builds a scene file.
 pub fn load(path: &Path) -> Result<BuiltScene, SceneError> {
+    load_within(path, None)
+}
+
+/// `load` within a memory budget (bytes) that replaces the scene's own and the machine's
+/// (`--budget`).
+pub fn load_within(path: &Path, budget: Option<f64>) -> Result<BuiltScene, SceneError> {
     let text = read_text(path, MAX_SCENE_BYTES).map_err(|message| SceneError {
         file: path.to_path_buf(),
         position: None,
         field: None,
         message: format!("cannot read the scene file: {message}"),
     })?;
-    load_str(&text, path)
+    load_str_within(&text, path, budget)
 }
 
 /// A text file of at most `limit` bytes; errors name what is wrong (a directory, too long, the
@@ -50,6 +56,11 @@ pub(crate) fn read_text(path: &Path, limit: u64) -> Result<String, String> {
 /// Parses, validates and builds a scene given as text; `path` names it in errors and anchors
 /// relative asset paths.
 pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
+    load_str_within(text, path, None)
+}
+
+/// `load_str` within a memory budget (bytes; see `load_within`).
+pub fn load_str_within(text: &str, path: &Path, budget: Option<f64>) -> Result<BuiltScene, SceneError> {
     // (a byte-order mark, as some Windows editors write)
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
@@ -66,10 +77,29 @@ pub fn load_str(text: &str, path: &Path) -> Result<BuiltScene, SceneError> {
         file: path.to_path_buf(),
         dir,
         memory: Default::default(),
-        budget: Default::default(),
+        budget: std::cell::Cell::new(budget.map(|b| (b, "the --budget"))),
         notes: Default::default(),
     };
-    builder.build(scene)
+    // Every number bounded (issue 66): NaN and infinities before the build, magnitudes after
+    // its own range checks (see `bounds`).
+    let unbounded = |found: super::bounds::Unbounded| {
+        let (line, col, token, key) = found;
+        let key = key.map(|k| format!(" (`{k}`)")).unwrap_or_default();
+        let message = format!(
+            "`{token}`{key} is not a number a scene can hold: every number must be finite and at most {:e} in size, \
+             in any unit (so that it stays finite in SI)",
+            super::bounds::MAX_MAGNITUDE
+        );
+        SceneError { file: path.to_path_buf(), position: Some((line, col)), field: None, message }
+    };
+    if let Some(found) = super::bounds::non_finite_number(text) {
+        return Err(unbounded(found));
+    }
+    let built = builder.build(scene)?;
+    match super::bounds::unbounded_number(text) {
+        Some(found) => Err(unbounded(found)),
+        None => Ok(built),
+    }
 }
 
 /// What a bare RON syntax error most likely means, from the text around its 1-based position:
@@ -117,8 +147,14 @@ impl Builder {
             if !(gb > 0.0 && gb.is_finite()) {
                 return Err(self.err("memory", format!("must be a positive number of GB (got {gb})")));
             }
-            self.budget.set(Some(gb * 1e9));
+            // (--budget, given, overrides the scene's)
+            if self.budget.get().is_none() {
+                self.budget.set(Some((gb * 1e9, "the scene's `memory` budget")));
+            }
         }
+        // Issue 66: a scene too big to run is refused from its declared sizes, before any mesh
+        // is made.
+        self.preflight(&scene)?;
         // Bodies and patches name output folders side by side: one name each.
         let mut names = HashMap::new();
         let mut bodies = Vec::new();

@@ -18,8 +18,9 @@ pub(super) struct Builder {
     pub(super) dir: PathBuf,
     /// The memory the layers built so far need to run (bytes, estimated: `meshes.rs`).
     pub(super) memory: std::cell::Cell<f64>,
-    /// The scene's stated memory budget (bytes), if any.
-    pub(super) budget: std::cell::Cell<Option<f64>>,
+    /// The memory budget (bytes) and whose it is ("--budget", "the scene's `memory` budget"),
+    /// if one is stated; else the machine's memory bounds the run.
+    pub(super) budget: std::cell::Cell<Option<(f64, &'static str)>>,
     /// What `check` and `run` tell the user beyond errors (`BuiltScene::notes`).
     pub(super) notes: std::cell::RefCell<Vec<String>>,
 }

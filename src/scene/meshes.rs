@@ -538,10 +538,25 @@ impl Builder {
     /// The memory a run may take (bytes): the scene's budget where it states one, else the
     /// machine's; and whose it is, for the message.
     fn memory_limit(&self) -> Option<(f64, &'static str)> {
-        match self.budget.get() {
-            Some(b) => Some((b, "the scene's `memory` budget")),
-            None => machine_memory().map(|m| (m, "this machine's memory")),
+        self.budget.get().or_else(|| machine_memory().map(|m| (m, "this machine's memory")))
+    }
+
+    /// Refuses a scene whose declared meshes (`preflight`) need more memory than the budget,
+    /// naming the layer that takes it past: counted from the text, before any mesh is made.
+    pub(super) fn preflight(&self, scene: &super::schema::Scene) -> Result<(), SceneError> {
+        let Some((limit, whose)) = self.memory_limit() else { return Ok(()) };
+        let mut total = 0.0;
+        for (field, kind, n) in super::preflight::declared_vertices(scene) {
+            // (past the cap, the mesh's own check says so, as quickly and more exactly)
+            if n > MAX_GENERATED_VERTICES {
+                continue;
+            }
+            total += n as f64 * bytes_per_vertex(kind);
+            if let Some(message) = memory_error(n, kind, total, limit, whose) {
+                return Err(self.err(field, message));
+            }
         }
+        Ok(())
     }
 
     /// Refuses a refinement to `vertices` vertices (`faces` faces, `levels` levels) that the

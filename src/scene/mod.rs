@@ -4,6 +4,7 @@
 //! input error without running; `spawn` turns a built scene into entities.
 
 pub mod anchors;
+pub mod bounds;
 mod build;
 pub mod built;
 mod character;
@@ -12,15 +13,17 @@ mod context;
 mod couplings;
 mod drivers;
 pub mod error;
+pub mod estimate;
 mod geometry;
 mod layers;
 mod meshes;
+mod preflight;
 pub mod properties;
 pub mod schema;
 pub mod spawn;
 pub mod targets;
 
-pub use build::{load, load_str};
+pub use build::{load, load_str, load_str_within, load_within};
 pub use built::BuiltScene;
 pub use error::SceneError;
 pub use meshes::MAX_GENERATED_VERTICES;

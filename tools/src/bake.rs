@@ -148,6 +148,9 @@ pub fn frames_for(scene: &BuiltScene, req: &BakeRequest) -> Result<Vec<u32>, Str
     if frames.is_empty() {
         return Err("nothing to bake: give --frames, --weights or --angles".into());
     }
+    if !req.blends.is_empty() && frames.len() < 2 {
+        return Err(format!("--blend needs two baked frames (the frames asked for are {frames:?})"));
+    }
     if req.layout == MapLayout::Asset && scene.patches.iter().all(|p| p.body.is_none()) {
         return Err("--layout asset bakes into a shared body's UVs: the scene has no patch on a body".into());
     }

@@ -26,8 +26,14 @@ struct Cli {
 enum Command {
     /// Run a scene: writes stats.jsonl, a Rerun recording and requested exports under --out.
     Run(RunArgs),
-    /// Validate a scene (schema, values, meshes, assets) without running it.
-    Check { scene: PathBuf },
+    /// Validate a scene (schema, values, meshes, assets) without running it, and estimate what
+    /// running it costs (vertices, DOFs, the Newton factor's memory, a frame's time).
+    Check {
+        scene: PathBuf,
+        /// The memory a run may take (GB; default: the scene's `memory`, else this machine's).
+        #[arg(long, value_parser = budget_gb)]
+        budget: Option<f64>,
+    },
     /// Wrinkles of a layer from its exported frames (`run --export obj`): per frame the
     /// compression, the dominant wavelengths and the amplitude; then the onset strain.
     Analyze {
@@ -238,6 +244,9 @@ struct RunArgs {
     /// Output folder (default: out/<scene name>).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// The memory the run may take (GB; default: the scene's `memory`, else this machine's).
+    #[arg(long, value_parser = budget_gb)]
+    budget: Option<f64>,
     /// Number of frames (default: the scene's).
     #[arg(long)]
     frames: Option<u32>,
@@ -305,7 +314,7 @@ fn main() -> ExitCode {
         eprintln!("error: internal error in skinsim (please report it): {info}");
     }));
     let result = std::panic::catch_unwind(|| match cli.command {
-        Command::Check { scene } => check(&scene),
+        Command::Check { scene, budget } => check(&scene, budget),
         Command::Run(args) => run(args),
         Command::Analyze { dir, axis, periodic } => analyze(&dir, axis as usize, periodic),
         Command::Report { out, quick, only, bending, cases, wavelength_term, rounds } => {
@@ -399,15 +408,40 @@ fn asset_hand(out: &Path, name: &str, finger: &[u32], arm: &[u32]) -> ExitCode {
     }
 }
 
-fn load(path: &Path) -> Result<BuiltScene, ExitCode> {
-    scene::load(path).map_err(|e| {
+/// Creates `out` and holds it for this command (one writer per output folder), or exits 2.
+fn hold(out: &Path, command: String) -> Result<skinsim_tools::out_lock::OutLock, ExitCode> {
+    if let Err(e) = std::fs::create_dir_all(out) {
+        eprintln!("error: cannot create the output folder {}: {e}", out.display());
+        return Err(ExitCode::from(2));
+    }
+    skinsim_tools::out_lock::lock(out, &command).map_err(|e| {
         eprintln!("error: {e}");
         ExitCode::from(2)
     })
 }
 
-fn check(path: &Path) -> ExitCode {
-    match load(path) {
+/// A memory budget on the command line: a positive number of GB.
+fn budget_gb(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(gb) if gb > 0.0 && gb <= 1e6 => Ok(gb),
+        _ => Err("a number of GB in (0, 1e6]".into()),
+    }
+}
+
+fn load(path: &Path) -> Result<BuiltScene, ExitCode> {
+    load_within(path, None)
+}
+
+/// `load` within a budget (GB).
+fn load_within(path: &Path, budget_gb: Option<f64>) -> Result<BuiltScene, ExitCode> {
+    scene::load_within(path, budget_gb.map(|gb| gb * 1e9)).map_err(|e| {
+        eprintln!("error: {e}");
+        ExitCode::from(2)
+    })
+}
+
+fn check(path: &Path, budget: Option<f64>) -> ExitCode {
+    match load_within(path, budget) {
         Ok(s) => {
             // A shared body counts once (a patch on it holds a copy as its layer 0).
             let own = s.patches.iter().flat_map(|p| &p.layers[p.body.map_or(0, |_| 1)..]);
@@ -427,6 +461,21 @@ fn check(path: &Path) -> ExitCode {
             );
             for note in &s.notes {
                 println!("  {note}");
+            }
+            // What a run costs, per patch (issue 66; orders of magnitude: scene::estimate).
+            use skinsim::scene::estimate::{costs, duration, FACTORIZATIONS};
+            for c in costs(&s) {
+                println!(
+                    "  {}: {} vertices, {} DOFs; Newton factor about {:.0} MB; a frame about {} smooth ({} factorizations) to {} buckling ({})",
+                    c.name,
+                    c.vertices,
+                    c.dofs,
+                    c.factor_bytes / 1e6,
+                    duration(c.frame_seconds[0]),
+                    FACTORIZATIONS[0],
+                    duration(c.frame_seconds[1]),
+                    FACTORIZATIONS[1],
+                );
             }
             ExitCode::SUCCESS
         }
@@ -454,7 +503,7 @@ fn run(args: RunArgs) -> ExitCode {
             return ExitCode::from(1);
         }
     }
-    let scene = match load(&args.scene) {
+    let scene = match load_within(&args.scene, args.budget) {
         Ok(s) => s,
         Err(code) => return code,
     };
@@ -466,10 +515,10 @@ fn run(args: RunArgs) -> ExitCode {
         return ExitCode::from(2);
     }
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.scene.name));
-    if let Err(e) = std::fs::create_dir_all(&out) {
-        eprintln!("error: cannot create the output folder {}: {e}", out.display());
-        return ExitCode::from(2);
-    }
+    let _held = match hold(&out, format!("run {}", args.scene.display())) {
+        Ok(l) => l,
+        Err(code) => return code,
+    };
     if let Err(e) = clear_earlier_outputs(&args, &scene, &out) {
         eprintln!("error: cannot clear an earlier run's outputs in {}: {e}", out.display());
         return ExitCode::from(2);
@@ -489,7 +538,7 @@ fn run(args: RunArgs) -> ExitCode {
     }
     let frames = args.frames.unwrap_or(scene.scene.frames);
     let mut sim = Simulation::new(&scene);
-    let rec = match recording(&args, &scene, &out) {
+    let (rec, rrd_file) = match recording(&args, &scene, &out) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: cannot open the Rerun output: {e}");
@@ -558,6 +607,15 @@ fn run(args: RunArgs) -> ExitCode {
         if let Some(rec) = &rec {
             rec.flush_blocking().ok();
         }
+        if let Some(e) = rrd_file.as_ref().and_then(|f| f.error()) {
+            bar.abandon();
+            eprintln!(
+                "error: cannot write the recording {e}; frames 1-{} are complete in the other outputs",
+                frame.frame
+            );
+            status = ExitCode::from(1);
+            break;
+        }
         if let Some(w) = stats.as_mut() {
             let line = serde_json::to_string(&frame).expect("stats serialize");
             if let Err(e) = writeln!(w, "{line}").and_then(|_| w.flush()) {
@@ -595,6 +653,12 @@ fn run(args: RunArgs) -> ExitCode {
     bar.finish_and_clear();
     if let Some(rec) = &rec {
         let _ = rec.flush_blocking();
+    }
+    if let Some(Err(e)) = rrd_file.as_ref().map(|f| f.finish()) {
+        if status == ExitCode::SUCCESS {
+            eprintln!("error: cannot write the recording {e}");
+        }
+        status = ExitCode::from(1);
     }
     // The USD stage holds every frame that completed, whatever ended the run.
     if let Some(UsdExport(stage)) = sim.world.remove_resource::<UsdExport>() {
@@ -651,6 +715,11 @@ fn analyze(dir: &Path, axis: usize, periodic: bool) -> ExitCode {
         eprintln!("error: {}: no .obj frames (run with --export obj)", dir.display());
         return ExitCode::from(2);
     }
+    // (a FIFO would block the read for ever, a link to /dev/zero fill the memory)
+    if let Some(f) = files.iter().find(|f| !std::fs::metadata(f).is_ok_and(|m| m.is_file())) {
+        eprintln!("error: {}: not a regular file (analyze reads regular .obj files only)", f.display());
+        return ExitCode::from(2);
+    }
     println!("{:>8} {:>12} {:>14} {:>14} {:>14}", "frame", "compression", "wavelength_mm", "second_mm", "amplitude_mm");
     let mut series = Vec::new();
     for f in &files {
@@ -680,22 +749,29 @@ fn analyze(dir: &Path, axis: usize, periodic: bool) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<rerun::RecordingStream>, String> {
+/// The run's recording, and when it goes to a file, the file (its write errors end the run).
+type Recording = (Option<rerun::RecordingStream>, Option<skinsim_tools::rrd_sink::RrdFile>);
+
+fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Recording, String> {
     if args.no_rerun || (!scene.scene.output.rerun && args.rrd.is_none() && !args.spawn && args.connect.is_none()) {
-        return Ok(None);
+        return Ok((None, None));
     }
     let mut builder = rerun::RecordingStreamBuilder::new("skinsim").recording_name(scene.scene.name.clone());
     if let Some(id) = &args.recording_id {
         // (an explicit id would otherwise drop the recording's name and start time)
         builder = builder.recording_id(id.clone()).send_properties(true);
     }
+    let mut file = None;
     let rec = if args.spawn {
         builder.spawn()
     } else if let Some(url) = &args.connect {
         viewer_listening(url)?;
         builder.connect_grpc_opts(url.clone())
     } else {
-        builder.save(args.rrd.clone().unwrap_or_else(|| out.join("recording.rrd")))
+        let path = args.rrd.clone().unwrap_or_else(|| out.join("recording.rrd"));
+        let (f, sink) = skinsim_tools::rrd_sink::RrdFile::create(&path)?;
+        file = Some(f);
+        builder.set_sinks(vec![Box::new(sink) as Box<dyn rerun::sink::LogSink>])
     }
     .map_err(|e| e.to_string())?;
     rec.set_log_time_enabled(false);
@@ -709,7 +785,7 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Option<re
         .with_component::<rerun::components::Text>("skinsim_version", text(env!("CARGO_PKG_VERSION").to_string()))
         .with_component::<rerun::components::Text>("threads", text(threads.to_string()));
     rec.send_property("skinsim", &about).map_err(|e| e.to_string())?;
-    Ok(Some(rec))
+    Ok((Some(rec), file))
 }
 
 /// The SHA-256 of a scene file's bytes, in hex (which scene text a recording came from).
@@ -728,18 +804,18 @@ fn recording_id(s: &str) -> Result<String, String> {
     }
 }
 
-/// The Rerun SDK connects lazily and drops what it cannot send: check that a viewer listens at
+/// The Rerun SDK connects lazily and drops what it cannot send: check that a viewer answers at
 /// `url` (e.g. rerun+http://127.0.0.1:9876/proxy) before the run starts.
 fn viewer_listening(url: &str) -> Result<(), String> {
     use std::net::ToSocketAddrs;
     let authority = url.split_once("://").map_or(url, |(_, rest)| rest).split('/').next().unwrap_or("");
     let addresses: Vec<_> = authority.to_socket_addrs().map_err(|e| format!("{url}: {e}"))?.collect();
     let timeout = std::time::Duration::from_secs(2);
-    if addresses.iter().any(|a| std::net::TcpStream::connect_timeout(a, timeout).is_ok()) {
-        Ok(())
-    } else {
-        Err(format!("no viewer is listening at {url} (start one with `rerun`, or use --spawn)"))
-    }
+    let Some(stream) = addresses.iter().find_map(|a| std::net::TcpStream::connect_timeout(a, timeout).ok()) else {
+        return Err(format!("no viewer is listening at {url} (start one with `rerun`, or use --spawn)"));
+    };
+    skinsim_tools::handshake::speaks_grpc(stream, timeout)
+        .map_err(|why| format!("{url} is not a Rerun viewer: {why} (start one with `rerun`, or use --spawn)"))
 }
 
 fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
@@ -756,12 +832,27 @@ fn bake(path: &Path, req: BakeRequest, out: Option<PathBuf>) -> ExitCode {
         return ExitCode::from(2);
     }
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(&scene.scene.name).join("wrinkle_maps"));
-    let _ = std::fs::create_dir_all(&out);
-    let rec = rerun::RecordingStreamBuilder::new("skinsim-bake").save(out.join("bake.rrd")).ok();
-    let result = skinsim_tools::bake::bake(&scene, &req, &out, rec.as_ref());
-    if let Some(rec) = &rec {
-        let _ = rec.flush_blocking();
-    }
+    let _held = match hold(&out, format!("bake {}", path.display())) {
+        Ok(l) => l,
+        Err(code) => return code,
+    };
+    let opened = skinsim_tools::rrd_sink::RrdFile::create(&out.join("bake.rrd"));
+    let started = opened.map_err(|e| e.to_string()).and_then(|(file, sink)| {
+        let rec = rerun::RecordingStreamBuilder::new("skinsim-bake")
+            .set_sinks(vec![Box::new(sink) as Box<dyn rerun::sink::LogSink>]);
+        rec.map(|r| (file, r)).map_err(|e| e.to_string())
+    });
+    let (file, rec) = match started {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: cannot write the bake's recording {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let result = skinsim_tools::bake::bake(&scene, &req, &out, Some(&rec));
+    let _ = rec.flush_blocking();
+    let result =
+        result.and_then(|b| file.finish().map(|_| b).map_err(|e| format!("cannot write the bake's recording {e}")));
     match result {
         Ok(baked) => {
             for w in &baked.warnings {
@@ -796,6 +887,10 @@ fn timing(scenes: &[PathBuf], frames: Option<u32>, rounds: u32, out: &Path) -> E
             return code;
         }
     }
+    let _held = match hold(out, "timing".to_string()) {
+        Ok(l) => l,
+        Err(code) => return code,
+    };
     let paths: Vec<&Path> = scenes.iter().map(PathBuf::as_path).collect();
     let rows = match timing::time_rounds(&paths, frames, rounds) {
         Ok(rows) => rows,
@@ -815,6 +910,10 @@ fn timing(scenes: &[PathBuf], frames: Option<u32>, rounds: u32, out: &Path) -> E
 }
 
 fn report(out: &Path, only: Sweeps, sweep: &skinsim_tools::lk14_report::Sweep) -> ExitCode {
+    let _held = match hold(out, "report".to_string()) {
+        Ok(l) => l,
+        Err(code) => return code,
+    };
     let result = (|| -> Result<(), Box<dyn std::error::Error>> {
         if only != Sweeps::Lk14 {
             let rows = skinsim_tools::report::speed_error(out, sweep.quick)?;

@@ -38,6 +38,13 @@ fn scene(young: &str, frames: u32) -> String {
     )
 }
 
+/// A scene whose frame 3 fails: its compression turns into a stretch by 1e29, whose energy is
+/// not finite (`run` stops, naming the frame and the patch).
+fn failing_scene() -> String {
+    let text = scene("10.0", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None");
+    text.replace("(4, 0.05)", "(4, -1e29)")
+}
+
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
@@ -339,6 +346,7 @@ fn the_usd_cache_opens_in_usd_and_matches_the_obj_export() {
             .unwrap()
             .flatten()
             .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
+            .filter(|e| e.file_name() != skinsim_tools::out_lock::LOCK_FILE)
             .collect();
         assert!(hidden.is_empty(), "the spool is left: {hidden:?}");
         reports.insert(name, stdout.to_string());
@@ -462,12 +470,9 @@ fn the_recording_carries_a_layout_of_the_stages_that_run() {
 #[test]
 fn a_failing_simulation_exits_1_and_keeps_earlier_frames() {
     let d = scratch("fail");
-    // A modulus this large overflows the forces as soon as the compression starts (frame 3).
-    let s = write(
-        &d,
-        "s.ron",
-        &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"),
-    );
+    // A stretch this large (the compression's keyframe at -1e29) overflows the energy as soon as
+    // it starts (frame 3). (A modulus of 1e164 did, until `check` bounded every number by 1e30.)
+    let s = write(&d, "s.ron", &failing_scene());
     let mut run = skinsim();
     run.args(["run", "--quiet", "--no-rerun", "--export", "obj", "--export", "usda", "--out"]);
     let out = run.arg(d.join("out")).arg(&s).output().unwrap();
@@ -516,11 +521,7 @@ fn timing_alternates_its_scenes_over_rounds_and_checks_them_all_first() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("bad.ron") && !err.contains("timing "), "{err}");
-    let failing = write(
-        &d,
-        "f.ron",
-        &scene("1e164", 6).replace("perturbation: (amplitude: 0.001, seed: 1)", "perturbation: None"),
-    );
+    let failing = write(&d, "f.ron", &failing_scene());
     let out = skinsim().args(["timing", "--out"]).arg(d.join("rep3")).arg(&failing).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");

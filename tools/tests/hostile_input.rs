@@ -116,7 +116,7 @@ fn unreadable_scene_files_are_refused_with_the_reason() {
 fn numbers_out_of_range_are_refused_at_check() {
     let d = scratch("numbers");
     let cases = [
-        ("tolerance", good(2).replace("seed: 1)", "seed: 1), tolerance: inf"), "solver.tolerance"),
+        ("tolerance", good(2).replace("seed: 1)", "seed: 1), tolerance: inf"), "`inf` (`tolerance`)"),
         ("tolerance_one", good(2).replace("seed: 1)", "seed: 1), tolerance: 1.0"), "solver.tolerance"),
         ("frame_time", good(2).replace("frames: 2,", "frames: 2, frame_time: 1e308,"), "frame_time"),
     ];
@@ -419,4 +419,181 @@ fn a_full_disk_is_named_with_the_file_and_the_os_error() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("cannot write") && err.contains("stats.jsonl") && err.contains("No space left"), "{err}");
+}
+
+/// Waits at most `secs` for `child`; kills it and fails if it is still running (a hang).
+fn finished_within(mut child: std::process::Child, secs: u64) -> Output {
+    let started = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if started.elapsed().as_secs() >= secs {
+            child.kill().unwrap();
+            panic!(
+                "still running after {secs} s: {:?}",
+                child.wait_with_output().map(|o| String::from_utf8_lossy(&o.stderr).into_owned())
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// Issue 66: a full disk under the recording (recording.rrd linked to /dev/full) ends the run
+/// with exit 1 naming the file and the OS error; it used to hang after frame 1.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_disk_under_the_recording_ends_the_run_naming_it() {
+    let d = scratch("full_rrd");
+    let path = write(&d, "good.ron", &good(4));
+    let out_dir = d.join("out");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    std::os::unix::fs::symlink("/dev/full", out_dir.join("recording.rrd")).unwrap();
+    let child = skinsim()
+        .args(["run", "--quiet", "--out"])
+        .arg(&out_dir)
+        .arg(&path)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = finished_within(child, 60);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("recording.rrd") && err.contains("No space left"), "{err}");
+    // The other outputs hold the frames before it.
+    assert!(std::fs::read_to_string(out_dir.join("stats.jsonl")).unwrap().lines().count() <= 1);
+}
+
+/// How a fake listener treats the connection it accepts.
+type Serve = fn(std::net::TcpStream);
+
+/// Issue 66: `--connect` to a listener that is not a Rerun viewer exits 2 before the run,
+/// whether it never answers, closes the connection or speaks another protocol.
+#[test]
+fn connect_refuses_a_listener_that_is_not_a_viewer() {
+    let d = scratch("listener");
+    let path = write(&d, "good.ron", &good(2));
+    let cases: [(Serve, &str); 3] = [
+        (|_s| std::thread::sleep(std::time::Duration::from_secs(5)), "did not answer"),
+        (drop, "is not a Rerun viewer"),
+        (
+            |mut s| {
+                use std::io::Write;
+                let _ = s.write_all(b"HTTP/1.1 400 Bad Request\r\n\r\n");
+                std::thread::sleep(std::time::Duration::from_secs(1));
+            },
+            "HTTP/1.1",
+        ),
+    ];
+    for (serve, words) in cases {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let url = format!("rerun+http://{}/proxy", listener.local_addr().unwrap());
+        std::thread::spawn(move || {
+            if let Ok((s, _)) = listener.accept() {
+                serve(s);
+            }
+        });
+        let child = skinsim()
+            .args(["run", "--quiet", "--connect", &url, "--out"])
+            .arg(d.join("out"))
+            .arg(&path)
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        refused(&finished_within(child, 30), &[words, &url]);
+    }
+}
+
+/// Issue 66: `analyze` reads regular files only: a FIFO named like a frame blocked it for ever,
+/// a link to /dev/zero read until memory ran out.
+#[cfg(target_os = "linux")]
+#[test]
+fn analyze_reads_regular_files_only() {
+    let d = scratch("analyze");
+    let fifo = d.join("fifo");
+    std::fs::create_dir_all(&fifo).unwrap();
+    assert!(Command::new("mkfifo").arg(fifo.join("00001.obj")).status().unwrap().success());
+    let child = skinsim().arg("analyze").arg(&fifo).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    refused(&finished_within(child, 30), &["00001.obj", "not a regular file"]);
+    let zero = d.join("zero");
+    std::fs::create_dir_all(&zero).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", zero.join("00001.obj")).unwrap();
+    let child = skinsim().arg("analyze").arg(&zero).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    refused(&finished_within(child, 30), &["00001.obj", "not a regular file"]);
+}
+
+/// Issue 66: one writer per output folder. A second run into a folder a run is writing exits 2
+/// naming the holder; once the first ends (killed here: the lock dies with it), runs go on.
+#[cfg(unix)]
+#[test]
+fn a_second_run_into_a_busy_folder_is_refused_naming_the_first() {
+    let d = scratch("busy");
+    let path = write(&d, "long.ron", &good(5000));
+    let out_dir = d.join("out");
+    let mut first = skinsim().args(["run", "--quiet", "--out"]).arg(&out_dir).arg(&path).spawn().unwrap();
+    wait_for_frames(&out_dir.join("stats.jsonl"), 1);
+    let second =
+        skinsim().args(["run", "--quiet", "--frames", "1", "--out"]).arg(&out_dir).arg(&path).output().unwrap();
+    refused(&second, &["in use by skinsim run", "long.ron", &format!("process {}", first.id())]);
+    let bake = skinsim().args(["bake", "--frames", "1", "--out"]).arg(&out_dir).arg(&path).output().unwrap();
+    refused(&bake, &["in use by skinsim run"]);
+    first.kill().unwrap();
+    first.wait().unwrap();
+    let third = skinsim().args(["run", "--quiet", "--frames", "1", "--out"]).arg(&out_dir).arg(&path).output().unwrap();
+    assert_eq!(third.status.code(), Some(0), "{}", String::from_utf8_lossy(&third.stderr));
+    assert_eq!(std::fs::read_to_string(out_dir.join("stats.jsonl")).unwrap().lines().count(), 1);
+}
+
+/// Issue 66: numbers that are not finite, or would not stay finite in SI, are refused at
+/// `check` with their line and column, wherever they are; `--blend` with one frame is refused
+/// before the scene runs.
+#[test]
+fn numbers_that_overflow_in_si_are_refused_with_their_place() {
+    let d = scratch("overflow");
+    let multi =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/multi_patch.ron")).unwrap();
+    let cases = [
+        ("young", good(2).replace("young: 10.0", "young: 1e300"), "`1e300` (`young`)"),
+        ("nan", multi.replacen("offset: (0.0, 10.0, 0.0)", "offset: (0.0, NaN, 0.0)", 1), "`NaN` (`offset`)"),
+        ("stiffness", good(2).replace("stiffness: 0.0056", "stiffness: 1e300"), "`1e300` (`stiffness`)"),
+    ];
+    for (tag, text, token) in cases {
+        let path = write(&d, &format!("{tag}.ron"), &text);
+        refused(&skinsim().arg("check").arg(&path).output().unwrap(), &[&format!("{tag}.ron:"), token, "finite"]);
+    }
+    let path = write(&d, "good.ron", &good(3));
+    let mut bake = skinsim();
+    bake.args(["bake", "--frames", "2", "--blend", "0.5", "--out"]).arg(d.join("maps")).arg(&path);
+    refused(&bake.output().unwrap(), &["--blend needs two baked frames"]);
+}
+
+/// Issue 66: a scene too big to run is refused from its declared sizes before any mesh is made
+/// (an 8.1 M-vertex kinematic tube with a shell offset from it was generated first: 44 s and
+/// 2.6 GB), within `--budget` when given; `check` prints what a run costs.
+#[test]
+fn the_budget_is_checked_before_meshes_are_made_and_check_says_what_a_run_costs() {
+    let d = scratch("budget");
+    let tube = r#"Scene(name: "tube", frames: 2, patches: [Patch(name: "t",
+        layers: [
+            Layer(name: "bone", kind: Kinematic, mesh: Tube(radius: 8.0, length: 60.0, cells: (2000, 4049))),
+            Layer(name: "skin", kind: Shell, mesh: Offset(layer: "bone", distance: 1.0),
+                  material: (young: 10.0, poisson: 0.3, thickness: 0.1), bending: (model: Tan)),
+        ],
+        drivers: [Attach(layer: "skin", to: "bone", stiffness: 0.0056)],
+    )])"#;
+    let path = write(&d, "tube.ron", tube);
+    // (a machine with more than 100 GB would take it: then the budget below decides)
+    let out = skinsim().args(["check", "--budget", "20"]).arg(&path).output().unwrap();
+    refused(&out, &["layers[1]", "8104050 vertices", "GB to run", "more than the --budget (20.0 GB)"]);
+    let path = write(&d, "good.ron", &good(2));
+    let out = skinsim().args(["check", "--budget", "0.001"]).arg(&path).output().unwrap();
+    refused(&out, &["layers[1]", "more than the --budget (1 MB)"]);
+    let mut run = skinsim();
+    run.args(["run", "--quiet", "--budget", "0.001", "--out"]).arg(d.join("out")).arg(&path);
+    refused(&run.output().unwrap(), &["more than the --budget"]);
+    // What a run costs: two layers of 87 vertices (an equilateral grid's odd rows carry one
+    // more), the film's all free (the base is kinematic).
+    let out = skinsim().arg("check").arg(&path).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(text.contains("sheet: 174 vertices, 261 DOFs; Newton factor about"), "{text}");
+    assert!(text.contains("smooth (3 factorizations)") && text.contains("buckling (40)"), "{text}");
 }
