@@ -4,8 +4,9 @@
 //! surface: n log n fill, n^1.5 work; a volume: n^(4/3) fill, n^2 work) with constants from
 //! measured factorizations (ENGINEERING-NOTES.md, src/solve/README.md): a 61k-DOF shell KKT
 //! system, 35.5M factor values; a 21k-DOF shell, 0.18 s a factorization; a 470k-DOF tet slab,
-//! 360M values and 21.9 s. They are orders of magnitude, not promises: a frame's Newton
-//! iterations depend on the physics.
+//! 360M values and 21.9 s; plus an assembly per vertex. They are orders of magnitude, not
+//! promises: a frame's Newton iterations depend on the physics (a character's kernels can take
+//! 100 in a frame).
 
 use crate::model::LayerKind;
 
@@ -19,9 +20,15 @@ const VOLUME_FILL: f64 = 10.0;
 const SHELL_WORK: f64 = 5.9e-8;
 /// Seconds per DOF^2 of a volume's factorization (21.9 s / 470k^2).
 const VOLUME_WORK: f64 = 1.0e-10;
-/// Factorizations in a frame that stays smooth, and in one that buckles (src/solve/README.md:
-/// 187-247 factorizations over fig. 6-3's 10 frames, most in its buckling frames).
-pub const FACTORIZATIONS: [f64; 2] = [3.0, 40.0];
+/// Seconds per vertex of a Newton iteration's assembly, besides the factorization: a volume's
+/// projected tet Hessians (h15/patch_3d_small: 0.35 s of 0.4 s an iteration at 10k vertices),
+/// a shell's triangles and hinges (kck18/creature_contact_quick: 3-4 ms at 1.3k).
+const VOLUME_ASSEMBLY: f64 = 35e-6;
+const SHELL_ASSEMBLY: f64 = 2e-6;
+/// Newton iterations (one factorization and one assembly each) in a frame that stays smooth,
+/// and in one that buckles (src/solve/README.md: 187-247 factorizations over fig. 6-3's 10
+/// frames, most in its buckling frames; fig. 6-4's pinch buckles in 44).
+pub const ITERATIONS: [f64; 2] = [3.0, 40.0];
 
 /// One patch's estimate.
 #[derive(Clone, Debug, PartialEq)]
@@ -49,19 +56,19 @@ pub fn costs(scene: &BuiltScene) -> Vec<PatchCost> {
             let free: u64 = solved.clone().map(|l| l.shared.iter().filter(|s| s.is_none()).count() as u64).sum();
             let volume = solved.clone().any(|l| l.kind == LayerKind::Volume);
             let n = 3.0 * free as f64;
-            let (values, factorization) = if n == 0.0 {
+            let (values, iteration) = if n == 0.0 {
                 (0.0, 0.0)
             } else if volume {
-                (VOLUME_FILL * n.powf(4.0 / 3.0), VOLUME_WORK * n * n)
+                (VOLUME_FILL * n.powf(4.0 / 3.0), VOLUME_WORK * n * n + VOLUME_ASSEMBLY * vertices as f64)
             } else {
-                (SHELL_FILL * n * n.log2().max(1.0), SHELL_WORK * n.powf(1.5))
+                (SHELL_FILL * n * n.log2().max(1.0), SHELL_WORK * n.powf(1.5) + SHELL_ASSEMBLY * vertices as f64)
             };
             PatchCost {
                 name: p.name.clone(),
                 vertices,
                 dofs: 3 * free,
                 factor_bytes: 8.0 * values,
-                frame_seconds: FACTORIZATIONS.map(|f| f * factorization),
+                frame_seconds: ITERATIONS.map(|i| i * iteration),
             }
         })
         .collect()

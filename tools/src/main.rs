@@ -463,18 +463,18 @@ fn check(path: &Path, budget: Option<f64>) -> ExitCode {
                 println!("  {note}");
             }
             // What a run costs, per patch (issue 66; orders of magnitude: scene::estimate).
-            use skinsim::scene::estimate::{costs, duration, FACTORIZATIONS};
+            use skinsim::scene::estimate::{costs, duration, ITERATIONS};
             for c in costs(&s) {
                 println!(
-                    "  {}: {} vertices, {} DOFs; Newton factor about {:.0} MB; a frame about {} smooth ({} factorizations) to {} buckling ({})",
+                    "  {}: {} vertices, {} DOFs; Newton factor about {:.0} MB; a frame about {} smooth ({} Newton iterations) to {} buckling ({})",
                     c.name,
                     c.vertices,
                     c.dofs,
                     c.factor_bytes / 1e6,
                     duration(c.frame_seconds[0]),
-                    FACTORIZATIONS[0],
+                    ITERATIONS[0],
                     duration(c.frame_seconds[1]),
-                    FACTORIZATIONS[1],
+                    ITERATIONS[1],
                 );
             }
             ExitCode::SUCCESS

@@ -595,5 +595,5 @@ fn the_budget_is_checked_before_meshes_are_made_and_check_says_what_a_run_costs(
     let text = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(0), "{text}");
     assert!(text.contains("sheet: 174 vertices, 261 DOFs; Newton factor about"), "{text}");
-    assert!(text.contains("smooth (3 factorizations)") && text.contains("buckling (40)"), "{text}");
+    assert!(text.contains("smooth (3 Newton iterations)") && text.contains("buckling (40)"), "{text}");
 }
