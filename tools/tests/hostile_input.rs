@@ -597,3 +597,59 @@ fn the_budget_is_checked_before_meshes_are_made_and_check_says_what_a_run_costs(
     assert!(text.contains("sheet: 174 vertices, 261 DOFs; Newton factor about"), "{text}");
     assert!(text.contains("smooth (3 Newton iterations)") && text.contains("buckling (40)"), "{text}");
 }
+
+/// Issue 66: `bake` whose recording cannot be written (bake.rrd linked to /dev/full) exits 1
+/// naming it; it exited 0.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_bake_whose_recording_cannot_be_written_exits_1() {
+    let d = scratch("bake_full");
+    let path = write(&d, "good.ron", &good(2));
+    let maps = d.join("maps");
+    std::fs::create_dir_all(&maps).unwrap();
+    std::os::unix::fs::symlink("/dev/full", maps.join("bake.rrd")).unwrap();
+    let out = skinsim().args(["bake", "--frames", "1", "--out"]).arg(&maps).arg(&path).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("bake.rrd") && err.contains("No space left"), "{err}");
+}
+
+/// Issue 66: SIGTERM (a farm's scheduler) ends a run after the frame being computed, as SIGINT
+/// does, keeping every frame written; a second signal ends it at once.
+#[cfg(unix)]
+#[test]
+fn sigterm_ends_a_run_after_its_frame_and_a_second_one_at_once() {
+    let d = scratch("sigterm");
+    let path = write(&d, "long.ron", &good(5000));
+    let out_dir = d.join("out");
+    let child = skinsim()
+        .args(["run", "--quiet", "--export", "obj", "--out"])
+        .arg(&out_dir)
+        .arg(&path)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stats = out_dir.join("stats.jsonl");
+    wait_for_frames(&stats, 2);
+    assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    let out = finished_within(child, 60);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted after frame"), "{err}");
+    let lines = std::fs::read_to_string(&stats).unwrap().lines().count();
+    assert_eq!(recorded_frames(&out_dir.join("recording.rrd")), (0..=lines as i64).collect::<Vec<_>>());
+    // Two signals in a row: the second ends the run at once, still with a status that says so.
+    let child = skinsim()
+        .args(["run", "--quiet", "--out"])
+        .arg(d.join("out2"))
+        .arg(&path)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_frames(&d.join("out2/stats.jsonl"), 1);
+    for _ in 0..2 {
+        assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    }
+    let out = finished_within(child, 60);
+    assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
+}
