@@ -217,20 +217,12 @@ pub fn eye(points: &[DVec3], tris: &[[u32; 3]]) -> Option<(DVec3, DVec3, DVec3)>
     if radius <= 0.0 {
         return None;
     }
-    let area_normal: DVec3 = tris
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| points[i as usize]);
-            0.5 * (b - a).cross(c - a)
-        })
-        .sum();
-    let area: f64 = tris
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| points[i as usize]);
-            0.5 * (b - a).cross(c - a).length()
-        })
-        .sum();
+    // (the area-weighted normal and the area, in one pass over the triangles)
+    let (area_normal, area) = tris.iter().fold((DVec3::ZERO, 0.0), |(n, a), t| {
+        let [p, q, r] = t.map(|i| points[i as usize]);
+        let half = 0.5 * (q - p).cross(r - p);
+        (n + half, a + half.length())
+    });
     let dir = if area > 0.0 && area_normal.length() > 0.3 * area { area_normal.normalize() } else { thinnest(lo, hi) };
     let up = if dir.z.abs() > 0.9 { DVec3::Y } else { DVec3::Z };
     Some((centre + EYE_DISTANCE * radius * dir, centre, up))

@@ -254,19 +254,20 @@ fn a_rerun_into_the_same_folder_keeps_only_its_own_frames() {
     assert_eq!(stats.lines().count(), 1);
 }
 
+/// `skinsim run --quiet [extra] --out out_dir scene`, started with its stderr piped.
+fn spawn_run(extra: &[&str], out_dir: &Path, scene: &Path) -> std::process::Child {
+    let mut run = skinsim();
+    run.args(["run", "--quiet"]).args(extra).arg("--out").arg(out_dir).arg(scene);
+    run.stderr(std::process::Stdio::piped()).spawn().unwrap()
+}
+
 #[cfg(unix)]
 #[test]
 fn an_interrupted_run_says_so_keeps_its_frames_and_exits_130() {
     let d = scratch("interrupt");
     let path = write(&d, "long.ron", &good(5000));
     let out_dir = d.join("out");
-    let child = skinsim()
-        .args(["run", "--quiet", "--export", "obj", "--out"])
-        .arg(&out_dir)
-        .arg(&path)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(&["--export", "obj"], &out_dir, &path);
     let stats = out_dir.join("stats.jsonl");
     wait_for_frames(&stats, 2);
     let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
@@ -447,13 +448,7 @@ fn a_full_disk_under_the_recording_ends_the_run_naming_it() {
     let out_dir = d.join("out");
     std::fs::create_dir_all(&out_dir).unwrap();
     std::os::unix::fs::symlink("/dev/full", out_dir.join("recording.rrd")).unwrap();
-    let child = skinsim()
-        .args(["run", "--quiet", "--out"])
-        .arg(&out_dir)
-        .arg(&path)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(&[], &out_dir, &path);
     let out = finished_within(child, 60);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
@@ -491,13 +486,7 @@ fn connect_refuses_a_listener_that_is_not_a_viewer() {
                 serve(s);
             }
         });
-        let child = skinsim()
-            .args(["run", "--quiet", "--connect", &url, "--out"])
-            .arg(d.join("out"))
-            .arg(&path)
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
+        let child = spawn_run(&["--connect", &url], &d.join("out"), &path);
         refused(&finished_within(child, 30), &[words, &url]);
     }
 }
@@ -622,13 +611,7 @@ fn sigterm_ends_a_run_after_its_frame_and_a_second_one_at_once() {
     let d = scratch("sigterm");
     let path = write(&d, "long.ron", &good(5000));
     let out_dir = d.join("out");
-    let child = skinsim()
-        .args(["run", "--quiet", "--export", "obj", "--out"])
-        .arg(&out_dir)
-        .arg(&path)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(&["--export", "obj"], &out_dir, &path);
     let stats = out_dir.join("stats.jsonl");
     wait_for_frames(&stats, 2);
     assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
@@ -639,13 +622,7 @@ fn sigterm_ends_a_run_after_its_frame_and_a_second_one_at_once() {
     let lines = std::fs::read_to_string(&stats).unwrap().lines().count();
     assert_eq!(recorded_frames(&out_dir.join("recording.rrd")), (0..=lines as i64).collect::<Vec<_>>());
     // Two signals in a row: the second ends the run at once, still with a status that says so.
-    let child = skinsim()
-        .args(["run", "--quiet", "--out"])
-        .arg(d.join("out2"))
-        .arg(&path)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_run(&[], &d.join("out2"), &path);
     wait_for_frames(&d.join("out2/stats.jsonl"), 1);
     for _ in 0..2 {
         assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
