@@ -5,6 +5,7 @@ pub mod anchors;
 pub mod assemble;
 pub mod attach;
 pub mod capture;
+pub mod checkpoint;
 pub mod inspect;
 pub mod kernels;
 mod layer_arrays;

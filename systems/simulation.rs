@@ -75,6 +75,22 @@ impl Simulation {
         }
     }
 
+    /// The state after the last frame (`checkpoint`).
+    pub fn checkpoint(&mut self) -> crate::checkpoint::Checkpoint {
+        crate::checkpoint::capture(&mut self.world)
+    }
+
+    /// A simulation of `scene` that continues from `saved`, a checkpoint of the same scene: the
+    /// frames it computes are the uninterrupted run's, bit for bit.
+    pub fn resume(
+        scene: &BuiltScene,
+        saved: &crate::checkpoint::Checkpoint,
+    ) -> Result<Self, crate::checkpoint::RestoreError> {
+        let mut sim = Simulation::new(scene);
+        crate::checkpoint::restore(&mut sim.world, saved)?;
+        Ok(sim)
+    }
+
     /// Why the simulation failed, if it did.
     pub fn failure(&self) -> Option<Failure> {
         self.world.resource::<SimFailure>().0.clone()

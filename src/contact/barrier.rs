@@ -9,7 +9,7 @@
 use num_dual::DualNum;
 
 /// The barrier's reach and offset for one pair.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Barrier {
     /// The thickness offset xi (m): the distance the barrier keeps the surfaces apart.
     pub offset: f64,

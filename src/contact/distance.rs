@@ -11,7 +11,7 @@ use crate::physics::dual::{cross3, dot3, sub3};
 
 /// A pair's primitives: four points, `[p, t0, t1, t2]` (point-triangle) or `[a0, a1, b0, b1]`
 /// (edge-edge).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 pub enum Primitives {
     PointTriangle,
     EdgeEdge,

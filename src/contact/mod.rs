@@ -147,7 +147,51 @@ pub struct ContactReport {
     pub kernel_gap: f64,
 }
 
+/// What contact carries from frame to frame beyond a rebuild's reach (`ContactState::memory`):
+/// the barrier's stiffness history, where prescribed vertices move from, and the pair lists
+/// and their reference positions (a list's order is the order its pairs are summed in).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ContactMemory {
+    pub margin: f64,
+    pub stiffness: f64,
+    pub stiffness_min: f64,
+    pub stiffness_max: f64,
+    pub last_min_z: f64,
+    pub kernel_spring: f64,
+    pub last: Vec<DVec3>,
+    pub listed_at: Vec<DVec3>,
+    pub wide: Vec<Pair>,
+    pub wide_at: Vec<DVec3>,
+    pub released: Vec<bool>,
+}
+
 impl ContactState {
+    /// What the state carries to the next frame (`ContactMemory`).
+    pub fn memory(&self) -> ContactMemory {
+        ContactMemory {
+            margin: self.margin,
+            stiffness: self.stiffness,
+            stiffness_min: self.stiffness_min,
+            stiffness_max: self.stiffness_max,
+            last_min_z: self.last_min_z,
+            kernel_spring: self.kernel_spring,
+            last: self.last.clone(),
+            listed_at: self.listed_at.clone(),
+            wide: self.wide.clone(),
+            wide_at: self.wide_at.clone(),
+            released: self.released.clone(),
+        }
+    }
+
+    /// Takes up a saved memory (a resumed run's first frame, after the rebuild).
+    pub fn remember(&mut self, m: ContactMemory) {
+        (self.margin, self.stiffness, self.stiffness_min, self.stiffness_max) =
+            (m.margin, m.stiffness, m.stiffness_min, m.stiffness_max);
+        (self.last_min_z, self.kernel_spring) = (m.last_min_z, m.kernel_spring);
+        (self.last, self.listed_at, self.wide, self.wide_at, self.released) =
+            (m.last, m.listed_at, m.wide, m.wide_at, m.released);
+    }
+
     pub fn new(surface: Surface, margin: f64) -> ContactState {
         ContactState { surface, margin, ..Default::default() }
     }

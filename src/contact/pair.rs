@@ -14,7 +14,7 @@ use crate::physics::dual::{cross3, dot3, sub3};
 use crate::physics::psd::{project, Filter};
 
 /// A point and a triangle, or two edges, of surfaces that may touch.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Pair {
     /// `[p, t0, t1, t2]` or `[a0, a1, b0, b1]`.
     pub v: [u32; 4],

@@ -202,7 +202,7 @@ pub fn sample(index: &SupportIndex, area: &[f64], centre: DVec2, radius: f64) ->
 }
 
 /// What the adjustment could do with a support.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Adjusted {
     /// Sum one and centroid on the centre (eq. 4.4-4.8, with the sum as a third condition).
     Centred,

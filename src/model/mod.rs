@@ -194,7 +194,7 @@ impl RemeshSettings {
 }
 
 /// What the last remesh of a layer did, and the layer's size after it.
-#[derive(Component, Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RemeshReport {
     pub frame: u64,
     /// The size_max used: the scene's, capped by the layer's kernels (m).

@@ -30,6 +30,13 @@ fn solve(packed: &mut PackedPatch, settings: &SolverSettings, dt: f64) -> Result
             (p, s)
         }
     };
+    if let (None, Some(memory), false) =
+        (&packed.cache.kkt, packed.cache.kkt_memory.take(), packed.constraints.is_empty())
+    {
+        let mut kkt = KktSystem::build(&pattern, &packed.constraints, settings.kkt);
+        kkt.remember(memory);
+        packed.cache.kkt = Some(kkt);
+    }
     if !packed.constraints.is_empty() && packed.contact.is_some() {
         let mut cache = packed.cache.kkt.take();
         let result = release::solve(packed, &mut pattern, &mut cache, settings, dt);

@@ -87,6 +87,17 @@ enum Solver {
     Schur { chol: Box<CholeskySolver>, jt: Vec<Vec<(u32, f64)>>, y: Mat<f64>, llt: Option<Llt<f64>>, shifted: Vec<f64> },
 }
 
+/// What a KKT system carries from one frame's solve to the next besides its factor: the shift
+/// history and the last inertia. A checkpoint saves it and a resumed run's first system takes
+/// it (`KktSystem::remember`), so that the frames after a resume repeat the uninterrupted run's.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct KktMemory {
+    pub last_shift: f64,
+    pub curvature: bool,
+    pub held: bool,
+    pub negative: Option<usize>,
+}
+
 /// What an SQP step is solved from at an iterate: the Hessian's values over its pattern, the
 /// kernels' Jacobian values (`Constraints::entries` order), the gradient over free DOFs and the
 /// constraint values.
@@ -178,6 +189,16 @@ impl KktSystem {
             held: false,
             negative: None,
         }
+    }
+
+    /// What the system carries to the next frame (`KktMemory`).
+    pub fn memory(&self) -> KktMemory {
+        KktMemory { last_shift: self.last_shift, curvature: self.curvature, held: self.held, negative: self.negative }
+    }
+
+    /// Takes up a saved system's memory (a resumed run's first solve).
+    pub fn remember(&mut self, m: KktMemory) {
+        (self.last_shift, self.curvature, self.held, self.negative) = (m.last_shift, m.curvature, m.held, m.negative);
     }
 
     /// The stability verdict at a constrained equilibrium (the LDL^T method): how many negative

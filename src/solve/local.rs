@@ -170,6 +170,7 @@ fn sub_patch(packed: &PackedPatch, free: &[bool]) -> (PackedPatch, Vec<u32>) {
         load_held: false,
         // (a region is solved without contact: scenes with contact do not remesh)
         contact: None,
+        carry: None,
     };
     (sub, map)
 }

@@ -31,5 +31,5 @@ pub use elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, PinE
 pub use error::SolveError;
 pub use frame::solve_frame;
 pub use iteration::{FrameOutcome, SolveCounters};
-pub use packed::{LocalReport, PackedPatch, PackedState, SolverCache};
+pub use packed::{Carry, LocalReport, PackedPatch, PackedState, SolverCache};
 pub use settings::{Globalization, KktMethod, LinearSolver, Precision, SolveMode, SolverSettings, StabilityTest};

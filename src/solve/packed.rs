@@ -35,6 +35,25 @@ pub struct PackedPatch {
     /// the one the load was accepted at (`SolverCache::accepted`; twice it when that was the
     /// stall test's floor, `constrained::held_level`), on a remeshed layer too.
     pub load_held: bool,
+    /// A resumed run's saved solver state (`Carry`), taken up after the first rebuild.
+    pub carry: Option<Carry>,
+}
+
+/// What a patch's solver carries from frame to frame and a rebuild from the ECS does not make
+/// again: a checkpoint saves it (`PackedPatch::carry`), a resumed run's first Assemble takes it
+/// up after its rebuild (`PackedPatch::take_up`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Carry {
+    /// The topology key the patch was packed for (`model::PackedIndex::key`): a resumed frame
+    /// whose key differs is one where the saved run rebuilt too, and kept only what a rebuild
+    /// keeps.
+    pub key: u64,
+    /// Set at the last rebuild from the positions then (not the resumed ones).
+    pub length_scale: f64,
+    pub multipliers: Vec<f64>,
+    pub accepted: f64,
+    pub kkt: Option<super::kkt::KktMemory>,
+    pub contact: Option<crate::contact::ContactMemory>,
 }
 
 /// What a region's solve did (the frame report's `local_solve`).
@@ -105,6 +124,8 @@ pub struct SolverCache {
     /// the one the load was first accepted at. Kept across a remesh: it is the load's, not the
     /// mesh's.
     pub accepted: f64,
+    /// A resumed run's KKT memory, for the first KKT system built (`KktSystem::remember`).
+    pub kkt_memory: Option<super::kkt::KktMemory>,
 }
 
 impl SolverCache {
@@ -115,6 +136,35 @@ impl SolverCache {
 }
 
 impl PackedPatch {
+    /// What the solver carries to the next frame (`Carry`).
+    pub fn carry(&self, key: u64) -> Carry {
+        Carry {
+            key,
+            length_scale: self.length_scale,
+            multipliers: self.cache.multipliers.clone(),
+            accepted: self.cache.accepted,
+            kkt: self.cache.kkt.as_ref().map(|k| k.memory()).or(self.cache.kkt_memory),
+            contact: self.contact.as_ref().map(|c| c.memory()),
+        }
+    }
+
+    /// Takes up a saved `Carry` after the rebuild of a resumed run's first frame. `key`: the
+    /// topology key of this frame. Where it differs from the saved one, the uninterrupted run
+    /// rebuilt in this frame as well: then only what its rebuild kept is taken up (the kernel
+    /// multipliers and the accepted residual), the rest stays as the rebuild made it.
+    pub fn take_up(&mut self, carry: Carry, key: u64) {
+        self.cache.multipliers = carry.multipliers;
+        self.cache.accepted = carry.accepted;
+        if key != carry.key {
+            return;
+        }
+        self.length_scale = carry.length_scale;
+        self.cache.kkt_memory = carry.kkt;
+        if let (Some(state), Some(memory)) = (self.contact.as_mut(), carry.contact) {
+            state.remember(memory);
+        }
+    }
+
     /// Tetrahedra whose current volume is not positive.
     pub fn inverted_tets(&self) -> usize {
         let x = &self.state.x;
@@ -163,6 +213,7 @@ impl PackedPatch {
             local: None,
             load_held: false,
             contact: None,
+            carry: None,
         }
     }
 }

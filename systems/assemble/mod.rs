@@ -100,6 +100,10 @@ pub fn gather_packed(mut patches: Query<PatchItems>, layers: Query<LayerItems>, 
                 packed.cache.invalidate(); // the pattern holds the kernels' J^T J couplings
             }
         }
+        // A resumed run: the solver state the checkpoint saved replaces what the rebuild made.
+        if let Some(carry) = packed.carry.take() {
+            packed.take_up(carry, key);
+        }
         let mut fixed_changed = false;
         let state = &mut packed.state;
         for (i, &e) in index.vertices.iter().enumerate() {

@@ -22,7 +22,7 @@ const FLIP_PASSES: usize = 64;
 const REFINE_ROUNDS: usize = 48;
 
 /// What one remesh did.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct RemeshStats {
     pub splits: u32,
     pub flips: u32,
