@@ -36,6 +36,8 @@ pub struct Checkpoint {
     pub layers: Vec<LayerState>,
     /// Every patch, in entity order.
     pub patches: Vec<PatchState>,
+    /// `log::LogState`: frame 0 written, and the layers' colour scales.
+    pub log: (bool, Vec<(u64, f64)>),
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -188,7 +190,10 @@ pub fn capture(world: &mut World) -> Checkpoint {
             }
         })
         .collect();
-    Checkpoint { frame: clock.frame, time: clock.time, layers, patches }
+    let log = world
+        .get_resource::<crate::log::LogState>()
+        .map_or((false, Vec::new()), |s| (s.rest_logged, s.colour_scales.iter().map(|&(l, x)| (bits(l), x)).collect()));
+    Checkpoint { frame: clock.frame, time: clock.time, layers, patches, log }
 }
 
 fn capture_layer(world: &World, l: Entity) -> LayerState {
@@ -275,7 +280,6 @@ fn capture_layer(world: &World, l: Entity) -> LayerState {
             }
         })
         .collect();
-    let _ = ids;
     LayerState {
         id: bits(l),
         name: world.get::<Layer>(l).expect("layer").name.clone(),
@@ -373,6 +377,8 @@ pub fn restore(world: &mut World, cp: &Checkpoint) -> Result<(), RestoreError> {
             packed.carry = Some(saved.carry.clone());
         }
     }
+    let colour_scales = cp.log.1.iter().map(|&(l, x)| Ok((remap.get(world, l)?, x))).collect::<Result<_, _>>()?;
+    world.insert_resource(crate::log::LogState { rest_logged: cp.log.0, colour_scales });
     let mut clock = world.resource_mut::<SimClock>();
     (clock.frame, clock.time) = (cp.frame, cp.time);
     Ok(())

@@ -41,6 +41,15 @@ pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>, 
     sink.is_some() || obj.is_some() || usd.is_some()
 }
 
+/// What logging carries from frame to frame that a checkpoint saves (`checkpoint`): whether
+/// frame 0 (the rest state) is written, and each layer's colour scale once fixed. A resumed
+/// run's log then neither writes frame 0 again nor rescales its colours.
+#[derive(Resource, Clone, Debug, Default, PartialEq)]
+pub struct LogState {
+    pub rest_logged: bool,
+    pub colour_scales: Vec<(Entity, f64)>,
+}
+
 #[derive(Default)]
 pub struct RenderCache {
     meshes: HashMap<Entity, RenderMesh>,
@@ -63,6 +72,7 @@ pub fn log_frame(
     mut usd: Option<ResMut<UsdExport>>,
     mut failure: ResMut<SimFailure>,
     mut cache: Local<RenderCache>,
+    mut state: Option<ResMut<LogState>>,
     patches: Query<(&Patch, &PatchLayers)>,
     layers: Query<LayerQ>,
     faces: Query<(&FaceVerts, Option<&FacePrestrain>)>,
@@ -81,6 +91,13 @@ pub fn log_frame(
     ordered.sort_by_key(|(p, _)| p.index);
     // The rest state first, as frame 0, in every output: frame 1 already carries the drivers'
     // first step and any perturbation.
+    if let Some(s) = state.as_deref().filter(|s| s.rest_logged && !cache.rest_logged) {
+        cache.rest_logged = true;
+        for &(l, scale) in &s.colour_scales {
+            let rm = cache.meshes.entry(l).or_default();
+            (rm.colour_scale, rm.scale_sent) = (scale, true);
+        }
+    }
     let passes: &[bool] = if cache.rest_logged { &[false] } else { &[true, false] };
     cache.rest_logged = true;
     for &rest in passes {
@@ -154,6 +171,11 @@ pub fn log_frame(
             rec.set_time_sequence("frame", clock.frame as i64);
             rec.set_duration_secs("sim_time", clock.time);
         }
+    }
+    if let Some(s) = state.as_deref_mut() {
+        s.rest_logged = cache.rest_logged;
+        s.colour_scales = cache.meshes.iter().map(|(&l, rm)| (l, rm.colour_scale)).collect();
+        s.colour_scales.sort_by_key(|(l, _)| l.to_bits());
     }
     if let Some(rec) = rec {
         let text = format!("### Colour: {}\n{}\n\n{}", by.name(), by.legend(), legend.join("\n"));

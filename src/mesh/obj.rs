@@ -222,6 +222,13 @@ pub fn write_frame(
 /// and the folders that leaves empty), so that a rerun's folder holds only its own frames;
 /// nothing else is touched.
 pub fn clear_frames(dir: &std::path::Path) -> std::io::Result<()> {
+    clear_frames_after(dir, 0).map(|_| ())
+}
+
+/// Removes the OBJ frames after `frame` under `dir` (a resumed run's: what the interrupted run
+/// wrote after its checkpoint), as `clear_frames` does all of them. Frame 0 is the rest state,
+/// written by the first frame: it goes only with `frame` 0.
+pub fn clear_frames_after(dir: &std::path::Path, after: u32) -> std::io::Result<()> {
     let obj = dir.join("obj");
     let folders = |d: &std::path::Path| -> std::io::Result<Vec<std::path::PathBuf>> {
         let mut v = Vec::new();
@@ -241,9 +248,12 @@ pub fn clear_frames(dir: &std::path::Path) -> std::io::Result<()> {
             for e in std::fs::read_dir(&layer)? {
                 let path = e?.path();
                 let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-                let frame =
-                    name.strip_suffix(".obj").is_some_and(|s| s.len() == 5 && s.bytes().all(|b| b.is_ascii_digit()));
-                if frame && path.is_file() {
+                let number = name
+                    .strip_suffix(".obj")
+                    .filter(|s| s.len() == 5 && s.bytes().all(|b| b.is_ascii_digit()))
+                    .and_then(|s| s.parse::<u32>().ok());
+                let stale = number.is_some_and(|f| after == 0 || f > after);
+                if stale && path.is_file() {
                     std::fs::remove_file(&path)?;
                 }
             }

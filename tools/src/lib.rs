@@ -10,6 +10,7 @@ pub mod lk14_report;
 pub mod out_lock;
 pub mod plot;
 pub mod report;
+pub mod resume;
 pub mod rrd_sink;
 pub mod skin_section;
 pub mod timing;

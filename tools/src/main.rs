@@ -209,7 +209,7 @@ enum AxisArg {
     Y,
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum, serde::Serialize, serde::Deserialize)]
 enum ColourArg {
     Strain,
     Curvature,
@@ -228,7 +228,7 @@ impl From<ColourArg> for ColourBy {
     }
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum, serde::Serialize, serde::Deserialize)]
 enum Export {
     /// obj/<patch>/<layer>/<frame>.obj
     Obj,
@@ -238,9 +238,27 @@ enum Export {
     Usda,
 }
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone, serde::Serialize, serde::Deserialize)]
 struct RunArgs {
-    scene: PathBuf,
+    /// The scene file (not with --resume: the checkpoint names it).
+    #[arg(required_unless_present = "resume")]
+    scene: Option<PathBuf>,
+    /// Write the whole state every N frames to <out>/checkpoint.cbor (the last one kept), so
+    /// that `run --resume <out>` can continue the run after it.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    checkpoint_every: Option<u32>,
+    /// Continue the run whose outputs are in this folder after its last checkpoint, with its
+    /// scene and options, appending to its outputs. The frames after it are bit-identical to
+    /// an uninterrupted run's at the same thread count. Refused when the scene file or the
+    /// program changed since.
+    #[arg(
+        long,
+        value_name = "OUT",
+        conflicts_with_all = ["scene", "checkpoint_every", "out", "rrd", "spawn", "connect", "no_rerun",
+                              "recording_id", "colour", "colour_scale", "export", "double_sided"]
+    )]
+    #[serde(skip)]
+    resume: Option<PathBuf>,
     /// Output folder (default: out/<scene name>).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -488,7 +506,44 @@ const MAX_THREADS_PER_CORE: usize = 16;
 /// Exit status of an interrupted run (128 + SIGINT, as shells report it).
 const INTERRUPTED: u8 = 130;
 
+/// A checkpoint file of `run` (`skinsim_tools::resume`).
+type Saved = skinsim_tools::resume::Saved<RunArgs>;
+
+/// `run --resume OUT`: the checkpoint, and the options to run with: the saved run's, with this
+/// command's `--frames`, `--threads`, `--budget` and `--quiet`.
+fn resume_args(out: &Path, given: &RunArgs) -> Result<(Saved, RunArgs), ExitCode> {
+    let saved: Saved = skinsim_tools::resume::read(out).map_err(|e| {
+        eprintln!("error: cannot resume: {e}");
+        ExitCode::from(2)
+    })?;
+    if let Some(n) = given.threads.filter(|&n| n != saved.threads) {
+        eprintln!(
+            "error: cannot resume: the run used {} threads, and only the same count repeats its frames \
+             bit for bit (give --threads {} or leave it out; got {n})",
+            saved.threads, saved.threads
+        );
+        return Err(ExitCode::from(2));
+    }
+    let mut args = saved.args.clone();
+    args.threads = Some(saved.threads);
+    args.frames = given.frames.or(Some(saved.frames));
+    (args.budget, args.quiet) = (given.budget, given.quiet);
+    Ok((saved, args))
+}
+
+/// `path` made absolute (a resumed run may start in another folder).
+fn absolute(path: &Path) -> PathBuf {
+    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
 fn run(args: RunArgs) -> ExitCode {
+    let (resume, args) = match args.resume.clone() {
+        Some(out) => match resume_args(&out, &args) {
+            Ok((saved, merged)) => (Some(saved), merged),
+            Err(code) => return code,
+        },
+        None => (None, args),
+    };
     // (before the scene loads: building it runs on rayon's pool, which then exists with a
     // thread per core and cannot be resized)
     if let Some(n) = args.threads {
@@ -503,7 +558,16 @@ fn run(args: RunArgs) -> ExitCode {
             return ExitCode::from(1);
         }
     }
-    let scene = match load_within(&args.scene, args.budget) {
+    let scene_path = args.scene.clone().expect("a scene: clap requires one without --resume");
+    if let Some(saved) = &resume {
+        let differs =
+            skinsim_tools::resume::differences(saved, skinsim_tools::resume::file_sha256(&scene_path).ok().as_deref());
+        if !differs.is_empty() {
+            eprintln!("error: cannot resume from {}: {}", skinsim_tools::resume::FILE, differs.join("; "));
+            return ExitCode::from(2);
+        }
+    }
+    let scene = match load_within(&scene_path, args.budget) {
         Ok(s) => s,
         Err(code) => return code,
     };
@@ -514,14 +578,42 @@ fn run(args: RunArgs) -> ExitCode {
         eprintln!("error: --frames must be at least 1");
         return ExitCode::from(2);
     }
+    let frames = args.frames.unwrap_or(scene.scene.frames);
     let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.scene.name));
-    let _held = match hold(&out, format!("run {}", args.scene.display())) {
+    let _held = match hold(&out, format!("run {}", scene_path.display())) {
         Ok(l) => l,
         Err(code) => return code,
     };
-    if let Err(e) = clear_earlier_outputs(&args, &scene, &out) {
-        eprintln!("error: cannot clear an earlier run's outputs in {}: {e}", out.display());
-        return ExitCode::from(2);
+    let (mut sim, done) = match &resume {
+        None => {
+            if let Err(e) = clear_earlier_outputs(&args, &scene, &out) {
+                eprintln!("error: cannot clear an earlier run's outputs in {}: {e}", out.display());
+                return ExitCode::from(2);
+            }
+            (Simulation::new(&scene), 0)
+        }
+        Some(saved) => {
+            let done = saved.state.frame;
+            if done >= frames {
+                eprintln!(
+                    "error: cannot resume: the checkpoint is of frame {done}, and the run ends at frame {frames}"
+                );
+                return ExitCode::from(2);
+            }
+            match Simulation::resume(&scene, &saved.state) {
+                Ok(sim) => (sim, done),
+                Err(e) => {
+                    eprintln!("error: cannot resume: {e}");
+                    return ExitCode::from(2);
+                }
+            }
+        }
+    };
+    if resume.is_some() {
+        if let Err(e) = skinsim::mesh::obj::clear_frames_after(&out, done) {
+            eprintln!("error: cannot clear the frames after the checkpoint in {}: {e}", out.display());
+            return ExitCode::from(2);
+        }
     }
     // Ctrl-C (or SIGTERM) ends the run after the frame being computed, with every output
     // closed; a second one ends it at once.
@@ -536,9 +628,8 @@ fn run(args: RunArgs) -> ExitCode {
             eprintln!("\ninterrupted: finishing the current frame (Ctrl-C again to stop now)");
         });
     }
-    let frames = args.frames.unwrap_or(scene.scene.frames);
-    let mut sim = Simulation::new(&scene);
-    let (rec, rrd_file) = match recording(&args, &scene, &out) {
+    let mark = resume.as_ref().and_then(|s| s.recording.as_ref());
+    let (rec, rrd_file) = match recording(&args, &scene, &out, mark) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: cannot open the Rerun output: {e}");
@@ -557,13 +648,18 @@ fn run(args: RunArgs) -> ExitCode {
     let text = args.export.contains(&Export::Usda) || scene.scene.output.usd_text;
     if args.export.contains(&Export::Usd) || scene.scene.output.usd || text {
         let doc =
-            format!("skinsim {}: scene {} ({})", env!("CARGO_PKG_VERSION"), scene.scene.name, args.scene.display());
+            format!("skinsim {}: scene {} ({})", env!("CARGO_PKG_VERSION"), scene.scene.name, scene_path.display());
         let options = UsdOptions {
             format: if text { UsdFormat::Text } else { UsdFormat::Crate },
             double_sided: args.double_sided || scene.scene.output.double_sided,
             st_unit: scene.scene.units.length.to_si(),
         };
-        match UsdStage::new(&out, &doc, 1.0 / scene.scene.frame_time, options) {
+        let fps = 1.0 / scene.scene.frame_time;
+        let stage = match resume.as_ref().and_then(|s| s.usd.as_ref()) {
+            Some(mark) => UsdStage::reopen(&out, &doc, fps, options, mark),
+            None => UsdStage::new(&out, &doc, fps, options),
+        };
+        match stage {
             Ok(stage) => {
                 sim.world.insert_resource(UsdExport(stage));
             }
@@ -575,25 +671,40 @@ fn run(args: RunArgs) -> ExitCode {
     }
     let stats_path = out.join("stats.jsonl");
     let mut stats = if scene.scene.output.stats {
-        match std::fs::File::create(&stats_path) {
+        let file = match resume.as_ref().and_then(|s| s.stats_len) {
+            Some(len) => skinsim_tools::resume::reopen_stats(&stats_path, len),
+            None => std::fs::File::create(&stats_path).map_err(|e| format!("{}: {e}", stats_path.display())),
+        };
+        match file {
             Ok(f) => Some(std::io::BufWriter::new(f)),
             Err(e) => {
-                eprintln!("error: cannot write {}: {e}", stats_path.display());
+                eprintln!("error: cannot write {e}");
                 return ExitCode::from(2);
             }
         }
     } else {
         None
     };
+    // What a checkpoint records of this run besides the state.
+    let mut saved_args = args.clone();
+    (saved_args.scene, saved_args.out) = (Some(absolute(&scene_path)), Some(absolute(&out)));
+    saved_args.rrd = saved_args.rrd.as_deref().map(absolute);
+    let scene_sha256 = scene_hash(&scene_path);
+    let recording_id = rec.as_ref().and_then(|r| r.store_info()).map(|i| i.store_id.recording_id().to_string());
     let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(frames as u64) };
     bar.set_style(ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {elapsed} (eta {eta})  {msg}").unwrap());
+    bar.set_position(done as u64);
     let start = std::time::Instant::now();
     let mut unconverged = Vec::new();
     let mut status = ExitCode::SUCCESS;
-    for _ in 0..frames {
+    let mut last = done;
+    for _ in done..frames {
         let frame = sim.step();
-        if let (Some(rec), 1) = (&rec, frame.frame) {
-            // The layout, once the first frame says which stages run.
+        last = frame.frame;
+        // The layout, once the first frame says which stages run (a resumed recording file
+        // has it from before the checkpoint; a viewer gets it again).
+        let first = frame.frame == done + 1 && (done == 0 || rrd_file.is_none());
+        if let (Some(rec), true) = (&rec, first) {
             let ran = frame
                 .timings_ms
                 .iter()
@@ -634,6 +745,20 @@ fn run(args: RunArgs) -> ExitCode {
             status = ExitCode::from(1);
             break;
         }
+        if args.checkpoint_every.is_some_and(|n| frame.frame % n == 0) {
+            let written = Written { stats: &stats_path, stats_on: stats.is_some(), rrd: rrd_file.as_ref() };
+            let ids = (&saved_args, scene_sha256.as_str(), scene.scene.name.as_str(), recording_id.as_deref(), frames);
+            if let Err(e) = write_checkpoint(&mut sim, &out, ids, written) {
+                bar.abandon();
+                eprintln!(
+                    "error: cannot write the checkpoint {e}; frames 1-{} are complete in {}",
+                    frame.frame,
+                    out.display()
+                );
+                status = ExitCode::from(1);
+                break;
+            }
+        }
         for p in frame.patches.iter().filter(|p| !p.outcome.converged) {
             unconverged
                 .push(format!("frame {} patch \"{}\" (residual {:.2e})", frame.frame, p.name, p.outcome.residual));
@@ -660,10 +785,13 @@ fn run(args: RunArgs) -> ExitCode {
         }
         status = ExitCode::from(1);
     }
-    // The USD stage holds every frame that completed, whatever ended the run.
+    // The USD stage holds every frame that completed, whatever ended the run; a run that may
+    // be resumed keeps its spool for the resume to append to.
     if let Some(UsdExport(stage)) = sim.world.remove_resource::<UsdExport>() {
         let path = stage.path().to_path_buf();
-        if let Err(e) = stage.finish() {
+        let resumable = args.checkpoint_every.is_some() && last < frames;
+        let written = if resumable { stage.finish_keeping() } else { stage.finish() };
+        if let Err(e) = written {
             eprintln!("error: cannot write {}: {e}", path.display());
             status = ExitCode::from(1);
         }
@@ -673,9 +801,64 @@ fn run(args: RunArgs) -> ExitCode {
         status = ExitCode::from(1);
     }
     if !args.quiet {
-        eprintln!("{} frames in {:.2} s; outputs in {}", frames, start.elapsed().as_secs_f64(), out.display());
+        let resumed = if done > 0 { format!(" (resumed after frame {done})") } else { String::new() };
+        eprintln!(
+            "{} frames{resumed} in {:.2} s; outputs in {}",
+            last - done,
+            start.elapsed().as_secs_f64(),
+            out.display()
+        );
     }
     status
+}
+
+/// The outputs a checkpoint marks how far they got.
+struct Written<'a> {
+    stats: &'a Path,
+    stats_on: bool,
+    rrd: Option<&'a skinsim_tools::rrd_sink::RrdFile>,
+}
+
+/// Saves the state after the frame just written, with the run's options and its outputs' marks
+/// (every output is flushed by now: the recording and stats.jsonl by the frame loop).
+fn write_checkpoint(
+    sim: &mut Simulation,
+    out: &Path,
+    (args, scene_sha256, name, recording_id, frames): (&RunArgs, &str, &str, Option<&str>, u32),
+    written: Written,
+) -> Result<(), String> {
+    let len = |p: &Path| std::fs::metadata(p).map(|m| m.len()).map_err(|e| format!("{}: {e}", p.display()));
+    let usd = match sim.world.get_resource_mut::<UsdExport>() {
+        Some(mut stage) => {
+            let path = stage.0.path().to_path_buf();
+            Some(stage.0.mark().map_err(|e| format!("(USD spool of {}): {e}", path.display()))?)
+        }
+        None => None,
+    };
+    let recording = match recording_id {
+        Some(id) => Some(skinsim_tools::resume::RecordingMark {
+            file: written.rrd.map(|f| f.path().to_path_buf()),
+            len: written.rrd.map(|f| len(f.path())).transpose()?.unwrap_or(0),
+            recording_id: id.to_string(),
+        }),
+        None => None,
+    };
+    let saved = Saved {
+        format: skinsim_tools::resume::FORMAT,
+        version: env!("CARGO_PKG_VERSION").into(),
+        build: skinsim_tools::resume::build_id(),
+        scene_file: args.scene.clone().expect("a scene"),
+        scene_sha256: scene_sha256.into(),
+        scene_name: name.into(),
+        args: args.clone(),
+        threads: rayon::current_num_threads(),
+        frames,
+        stats_len: written.stats_on.then(|| len(written.stats)).transpose()?,
+        recording,
+        usd,
+        state: sim.checkpoint(),
+    };
+    skinsim_tools::resume::write(out, &saved)
 }
 
 /// What an earlier run into `out` left that this one would not overwrite: its OBJ frames, and
@@ -752,7 +935,14 @@ fn analyze(dir: &Path, axis: usize, periodic: bool) -> ExitCode {
 /// The run's recording, and when it goes to a file, the file (its write errors end the run).
 type Recording = (Option<rerun::RecordingStream>, Option<skinsim_tools::rrd_sink::RrdFile>);
 
-fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Recording, String> {
+/// The Rerun output; `resumed`: an interrupted run's recording, continued under its id (its
+/// file cut back to the checkpoint's mark).
+fn recording(
+    args: &RunArgs,
+    scene: &BuiltScene,
+    out: &Path,
+    resumed: Option<&skinsim_tools::resume::RecordingMark>,
+) -> Result<Recording, String> {
     if args.no_rerun || (!scene.scene.output.rerun && args.rrd.is_none() && !args.spawn && args.connect.is_none()) {
         return Ok((None, None));
     }
@@ -760,6 +950,10 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Recording
     if let Some(id) = &args.recording_id {
         // (an explicit id would otherwise drop the recording's name and start time)
         builder = builder.recording_id(id.clone()).send_properties(true);
+    }
+    if let Some(mark) = resumed {
+        // (its name and start time are in the stream before the mark)
+        builder = builder.recording_id(mark.recording_id.clone()).send_properties(false);
     }
     let mut file = None;
     let rec = if args.spawn {
@@ -769,7 +963,10 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Recording
         builder.connect_grpc_opts(url.clone())
     } else {
         let path = args.rrd.clone().unwrap_or_else(|| out.join("recording.rrd"));
-        let (f, sink) = skinsim_tools::rrd_sink::RrdFile::create(&path)?;
+        let (f, sink) = match resumed.map(|m| m.len) {
+            Some(len) => skinsim_tools::rrd_sink::RrdFile::append(&path, len)?,
+            None => skinsim_tools::rrd_sink::RrdFile::create(&path)?,
+        };
         file = Some(f);
         builder.set_sinks(vec![Box::new(sink) as Box<dyn rerun::sink::LogSink>])
     }
@@ -778,13 +975,16 @@ fn recording(args: &RunArgs, scene: &BuiltScene, out: &Path) -> Result<Recording
     // Shown in the viewer's recording properties beside the name and start time.
     let text = |v: String| [rerun::components::Text(v.into())];
     let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
+    let scene_file = args.scene.clone().unwrap_or_default();
     let about = rerun::AnyValues::default()
         .with_component::<rerun::components::Text>("scene", text(scene.scene.name.clone()))
-        .with_component::<rerun::components::Text>("scene_file", text(args.scene.display().to_string()))
-        .with_component::<rerun::components::Text>("scene_sha256", text(scene_hash(&args.scene)))
+        .with_component::<rerun::components::Text>("scene_file", text(scene_file.display().to_string()))
+        .with_component::<rerun::components::Text>("scene_sha256", text(scene_hash(&scene_file)))
         .with_component::<rerun::components::Text>("skinsim_version", text(env!("CARGO_PKG_VERSION").to_string()))
         .with_component::<rerun::components::Text>("threads", text(threads.to_string()));
-    rec.send_property("skinsim", &about).map_err(|e| e.to_string())?;
+    if resumed.is_none() {
+        rec.send_property("skinsim", &about).map_err(|e| e.to_string())?;
+    }
     Ok((Some(rec), file))
 }
 

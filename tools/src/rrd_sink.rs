@@ -32,14 +32,53 @@ pub struct RrdSink(RrdFile);
 impl RrdFile {
     /// Creates `path` (truncating it) and writes the stream's header.
     pub fn create(path: &Path) -> Result<(RrdFile, RrdSink), String> {
+        let file = File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::start(path, file)
+    }
+
+    /// The recording `path` continued after its first `len` bytes (a checkpoint's mark): those
+    /// are decoded and written again, as the start of one new stream (so that its footer's
+    /// manifest covers the whole file), into a file that then replaces `path`; what comes next
+    /// is appended to it. Until the rename the old file stands whole.
+    pub fn append(path: &Path, len: u64) -> Result<(RrdFile, RrdSink), String> {
+        use std::io::Read;
         let fail = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
-        let file = File::create(path).map_err(|e| fail(&e))?;
+        let old = File::open(path).map_err(|e| fail(&e))?;
+        let on_disk = old.metadata().map_err(|e| fail(&e))?.len();
+        if on_disk < len {
+            return Err(format!("{}: {on_disk} bytes, shorter than the checkpoint's {len}", path.display()));
+        }
+        let fresh = path.with_extension("rrd.resume");
+        let file = File::create(&fresh).map_err(|e| format!("{}: {e}", fresh.display()))?;
+        let (rrd, sink) = Self::start(path, file)?;
+        {
+            let prefix = std::io::BufReader::new(old.take(len));
+            let decoder = rerun::external::re_log_encoding::DecoderApp::decode_eager(prefix).map_err(|e| fail(&e))?;
+            let mut s = rrd.lock();
+            let encoder = s.encoder.as_mut().expect("a new encoder");
+            for msg in decoder {
+                let msg = msg.map_err(|e| fail(&e))?;
+                encoder.append(&msg).map_err(|e| format!("{}: {e}", fresh.display()))?;
+            }
+            encoder.flush_blocking().map_err(|e| format!("{}: {e}", fresh.display()))?;
+        }
+        std::fs::rename(&fresh, path).map_err(|e| fail(&e))?;
+        Ok((rrd, sink))
+    }
+
+    fn start(path: &Path, file: File) -> Result<(RrdFile, RrdSink), String> {
+        let fail = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
         let encoder =
             Encoder::new_eager(CrateVersion::LOCAL, EncodingOptions::PROTOBUF_COMPRESSED, BufWriter::new(file))
                 .map_err(|e| fail(&e))?;
         let state = Arc::new(Mutex::new(State { encoder: Some(encoder), error: None }));
         let file = RrdFile { path: path.to_path_buf(), state };
         Ok((file.clone(), RrdSink(file)))
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     /// The first write error, naming the file.

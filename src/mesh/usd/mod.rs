@@ -68,6 +68,26 @@ impl Default for UsdOptions {
     }
 }
 
+/// Where a stage stood after a frame (a checkpoint's): its prims and each spool's length. A
+/// resumed run reopens the spool cut back to it (`UsdStage::reopen`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct UsdMark {
+    frames: Option<(u32, u32)>,
+    prims: Vec<PrimMark>,
+}
+
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+struct PrimMark {
+    patch: String,
+    layer: String,
+    names: (String, String),
+    varying: bool,
+    sampled_topology: bool,
+    fixed: Option<(Vec<[u32; 3]>, Vec<DVec2>)>,
+    asset_uv: bool,
+    spools: Vec<u64>,
+}
+
 /// The stage being built.
 pub struct UsdStage {
     path: PathBuf,
@@ -145,6 +165,60 @@ impl UsdStage {
         }
         std::fs::create_dir_all(&spool)?;
         Ok(UsdStage { path, spool, doc: doc.to_string(), frames_per_second, frames: None, prims: Vec::new(), options })
+    }
+
+    /// The stage's spool after the frames added so far, flushed, and its mark.
+    pub fn mark(&mut self) -> std::io::Result<UsdMark> {
+        let mut prims = Vec::with_capacity(self.prims.len());
+        for p in &mut self.prims {
+            for s in &mut p.spools {
+                s.flush()?;
+            }
+            prims.push(PrimMark {
+                patch: p.patch.clone(),
+                layer: p.layer.clone(),
+                names: p.names.clone(),
+                varying: p.varying,
+                sampled_topology: p.sampled_topology,
+                fixed: p.fixed.clone(),
+                asset_uv: p.asset_uv,
+                spools: p.spools.iter().map(|s| s.len()).collect(),
+            });
+        }
+        Ok(UsdMark { frames: self.frames, prims })
+    }
+
+    /// The stage of an interrupted run, continued from `mark`: its spool (which `finish_keeping`
+    /// or a killed run left in `dir`) cut back to the mark.
+    pub fn reopen(
+        dir: &Path,
+        doc: &str,
+        frames_per_second: f64,
+        options: UsdOptions,
+        mark: &UsdMark,
+    ) -> std::io::Result<Self> {
+        let path = dir.join(options.format.file_name());
+        let spool = dir.join(format!(".{}.spool", options.format.file_name()));
+        let mut prims = Vec::with_capacity(mark.prims.len());
+        for (i, m) in mark.prims.iter().enumerate() {
+            let spools = m
+                .spools
+                .iter()
+                .enumerate()
+                .map(|(k, &len)| SpoolWriter::reopen(&spool.join(format!("{i}.{}", ATTRIBUTES[k].names().2)), len))
+                .collect::<std::io::Result<_>>()?;
+            prims.push(Prim {
+                patch: m.patch.clone(),
+                layer: m.layer.clone(),
+                names: m.names.clone(),
+                varying: m.varying,
+                sampled_topology: m.sampled_topology,
+                spools,
+                fixed: m.fixed.clone(),
+                asset_uv: m.asset_uv,
+            });
+        }
+        Ok(UsdStage { path, spool, doc: doc.to_string(), frames_per_second, frames: mark.frames, prims, options })
     }
 
     /// Metres per unit of `st` for material coordinates (`UsdOptions::st_unit`).
@@ -240,7 +314,16 @@ impl UsdStage {
     }
 
     /// Writes the stage (every frame added so far) and removes the spool; returns its path.
-    pub fn finish(mut self) -> std::io::Result<PathBuf> {
+    pub fn finish(self) -> std::io::Result<PathBuf> {
+        self.write(false)
+    }
+
+    /// Writes the stage and keeps the spool, for a run that may be resumed (`reopen`).
+    pub fn finish_keeping(self) -> std::io::Result<PathBuf> {
+        self.write(true)
+    }
+
+    fn write(mut self, keep: bool) -> std::io::Result<PathBuf> {
         for p in &mut self.prims {
             for s in &mut p.spools {
                 s.flush()?;
@@ -253,7 +336,9 @@ impl UsdStage {
             UsdFormat::Crate => binary::write(&self, &partial)?,
         }
         std::fs::rename(&partial, &self.path)?;
-        std::fs::remove_dir_all(&self.spool)?;
+        if !keep {
+            std::fs::remove_dir_all(&self.spool)?;
+        }
         Ok(self.path)
     }
 }

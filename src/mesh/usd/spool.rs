@@ -6,12 +6,29 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::Path;
 
-/// One attribute's samples, appended frame by frame.
-pub(super) struct SpoolWriter(BufWriter<File>);
+/// One attribute's samples, appended frame by frame, and the bytes written so far.
+pub(super) struct SpoolWriter(BufWriter<File>, u64);
 
 impl SpoolWriter {
     pub(super) fn create(path: &Path) -> std::io::Result<Self> {
-        Ok(SpoolWriter(BufWriter::new(File::create(path)?)))
+        Ok(SpoolWriter(BufWriter::new(File::create(path)?), 0))
+    }
+
+    /// The spool `path` cut back to its first `len` bytes (a checkpoint's mark), to append to.
+    pub(super) fn reopen(path: &Path, len: u64) -> std::io::Result<Self> {
+        let file = std::fs::OpenOptions::new().write(true).open(path)?;
+        if file.metadata()?.len() < len {
+            return Err(std::io::Error::other(format!("{} is shorter than its checkpoint's mark", path.display())));
+        }
+        file.set_len(len)?;
+        let mut w = BufWriter::new(file);
+        std::io::Seek::seek(&mut w, std::io::SeekFrom::Start(len))?;
+        Ok(SpoolWriter(w, len))
+    }
+
+    /// The bytes written so far.
+    pub(super) fn len(&self) -> u64 {
+        self.1
     }
 
     /// Appends the sample of `frame`: `words` as 4-byte little-endian words.
@@ -19,6 +36,7 @@ impl SpoolWriter {
         self.header(frame, words.len())?;
         for x in words {
             self.0.write_all(&x.to_le_bytes())?;
+            self.1 += 4;
         }
         Ok(())
     }
@@ -27,6 +45,7 @@ impl SpoolWriter {
         self.header(frame, words.len())?;
         for x in words {
             self.0.write_all(&x.to_le_bytes())?;
+            self.1 += 4;
         }
         Ok(())
     }
@@ -34,7 +53,9 @@ impl SpoolWriter {
     fn header(&mut self, frame: u32, len: usize) -> std::io::Result<()> {
         let len = u32::try_from(len).map_err(|_| std::io::Error::other("a sample of over 2^32 values"))?;
         self.0.write_all(&frame.to_le_bytes())?;
-        self.0.write_all(&len.to_le_bytes())
+        self.0.write_all(&len.to_le_bytes())?;
+        self.1 += 8;
+        Ok(())
     }
 
     pub(super) fn flush(&mut self) -> std::io::Result<()> {
