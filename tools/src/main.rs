@@ -698,6 +698,9 @@ fn run(args: RunArgs) -> ExitCode {
     let mut unconverged = Vec::new();
     let mut status = ExitCode::SUCCESS;
     let mut last = done;
+    // Tests kill a run at a known frame (`tests/resume.rs`): as SIGKILL would, after the frame's
+    // outputs, with nothing closed.
+    let kill_after: Option<u32> = std::env::var("SKINSIM_TEST_KILL_AFTER_FRAME").ok().and_then(|v| v.parse().ok());
     for _ in done..frames {
         let frame = sim.step();
         last = frame.frame;
@@ -745,7 +748,10 @@ fn run(args: RunArgs) -> ExitCode {
             status = ExitCode::from(1);
             break;
         }
-        if args.checkpoint_every.is_some_and(|n| frame.frame % n == 0) {
+        // Every N frames, and at an interruption (a farm's preemption sends SIGTERM): the resume
+        // then loses no finished frame.
+        let stopping = interrupted.load(std::sync::atomic::Ordering::SeqCst);
+        if args.checkpoint_every.is_some_and(|n| frame.frame % n == 0 || stopping) {
             let written = Written { stats: &stats_path, stats_on: stats.is_some(), rrd: rrd_file.as_ref() };
             let ids = (&saved_args, scene_sha256.as_str(), scene.scene.name.as_str(), recording_id.as_deref(), frames);
             if let Err(e) = write_checkpoint(&mut sim, &out, ids, written) {
@@ -758,6 +764,10 @@ fn run(args: RunArgs) -> ExitCode {
                 status = ExitCode::from(1);
                 break;
             }
+        }
+        if kill_after == Some(frame.frame) {
+            let _ = std::process::Command::new("kill").args(["-KILL", &std::process::id().to_string()]).status();
+            std::process::exit(137);
         }
         for p in frame.patches.iter().filter(|p| !p.outcome.converged) {
             unconverged
