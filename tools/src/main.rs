@@ -596,7 +596,8 @@ fn run(args: RunArgs) -> ExitCode {
             let done = saved.state.frame;
             if done >= frames {
                 eprintln!(
-                    "error: cannot resume: the checkpoint is of frame {done}, and the run ends at frame {frames}"
+                    "error: nothing to resume: the checkpoint is of frame {done}, and the run ends at frame \
+                     {frames} (--frames N goes further)"
                 );
                 return ExitCode::from(2);
             }

@@ -143,7 +143,7 @@ fn a_killed_anchor_run_resumes_bit_identically() {
 #[test]
 fn a_killed_kernel_run_resumes_bit_identically_with_its_usd_stage() {
     let name = "kernel";
-    killed_run_resumes_bit_identically(name, "character/hand_quick.ron", 10, 2, 5, &["--export", "usd"]);
+    killed_run_resumes_bit_identically(name, "character/hand_quick.ron", 6, 2, 3, &["--export", "usd"]);
     let d = std::env::temp_dir().join(format!("skinsim-resume-{}-{name}", std::process::id()));
     let stage = |run: &str| std::fs::read(d.join(run).join("skinsim.usdc")).unwrap();
     assert!(stage("whole") == stage("cut"), "the resumed USD stage differs");
