@@ -27,4 +27,4 @@ pub mod solve;
 pub mod writeback;
 
 pub use schedule::{build_schedule, StageSet};
-pub use simulation::{FrameStats, Simulation};
+pub use simulation::{without_timings, FrameStats, Simulation};

@@ -33,6 +33,23 @@ impl FrameStats {
     }
 }
 
+/// A stats line with every wall time (keys ending in `ms`, at any depth) left out: what two runs
+/// of a scene at one thread count agree on bit for bit (a resumed one included).
+pub fn without_timings(mut line: serde_json::Value) -> serde_json::Value {
+    fn strip(v: &mut serde_json::Value) {
+        match v {
+            serde_json::Value::Object(map) => {
+                map.retain(|k, _| !k.ends_with("ms"));
+                map.values_mut().for_each(strip);
+            }
+            serde_json::Value::Array(list) => list.iter_mut().for_each(strip),
+            _ => {}
+        }
+    }
+    strip(&mut line);
+    line
+}
+
 /// The key of the frame's wall time in `timings_ms` (beside every stage's `Stage::key`).
 pub const TOTAL: &str = "total";
 

@@ -199,20 +199,25 @@ fn one_mutant(seed: usize, mutations: &[Mutation]) -> Result<(), TestCaseError> 
         if vertices(&built) <= STEP_VERTICES {
             // Every stage runs; the solve only needs to start (a buckling character frame
             // takes 100-300 Newton iterations, 10-20 s, and no stage more than a few).
-            for p in &mut built.patches {
-                p.solver.max_iterations = p.solver.max_iterations.min(MAX_ITERATIONS);
-            }
-            let mut sim = Simulation::new(&built);
-            sim.step();
-            // Issue 66: what `check` accepts, `run` computes: a frame either fails, saying so
-            // (exit 1 with the frame and patch), or leaves every position finite (a NaN
-            // offset passed `check` and wrote NaN frames).
-            if sim.failure().is_none() {
-                let mut q = sim.world.query::<&skinsim::model::Position>();
-                let bad = q.iter(&sim.world).find(|p| !p.0.is_finite());
-                prop_assert!(bad.is_none(), "{}: a position {:?} after frame 1", path.display(), bad);
-            }
+            step_once(&mut built, path)?;
         }
+    }
+    Ok(())
+}
+
+/// A mutant that loaded, stepped a frame with a short solve: every stage runs. Issue 66: what
+/// `check` accepts, `run` computes: the frame either fails, saying so (exit 1 with the frame and
+/// patch), or leaves every position finite (a NaN offset passed `check` and wrote NaN frames).
+fn step_once(built: &mut scene::BuiltScene, path: &Path) -> Result<(), TestCaseError> {
+    for p in &mut built.patches {
+        p.solver.max_iterations = p.solver.max_iterations.min(MAX_ITERATIONS);
+    }
+    let mut sim = Simulation::new(built);
+    sim.step();
+    if sim.failure().is_none() {
+        let mut q = sim.world.query::<&skinsim::model::Position>();
+        let bad = q.iter(&sim.world).find(|p| !p.0.is_finite());
+        prop_assert!(bad.is_none(), "{}: a position {:?} after frame 1", path.display(), bad);
     }
     Ok(())
 }
@@ -429,16 +434,7 @@ fn one_mesh_mutant(seed: usize, mutations: &[MeshMutation]) -> Result<(), TestCa
                 }
             }
         }
-        for p in &mut built.patches {
-            p.solver.max_iterations = p.solver.max_iterations.min(MAX_ITERATIONS);
-        }
-        let mut sim = Simulation::new(&built);
-        sim.step();
-        if sim.failure().is_none() {
-            let mut q = sim.world.query::<&skinsim::model::Position>();
-            let bad = q.iter(&sim.world).find(|p| !p.0.is_finite());
-            prop_assert!(bad.is_none(), "{}: a position {:?} after frame 1", path.display(), bad);
-        }
+        step_once(&mut built, path)?;
     }
     Ok(())
 }

@@ -12,8 +12,7 @@ use skinsim_systems::{FrameStats, Simulation};
 
 /// A frame's stats line without its timings, and every vertex position's bits by layer order.
 fn frame_record(sim: &mut Simulation, stats: &FrameStats) -> (String, Vec<[u64; 3]>) {
-    let mut line = serde_json::to_value(stats).unwrap();
-    strip_timings(&mut line);
+    let line = skinsim_systems::without_timings(serde_json::to_value(stats).unwrap());
     let mut layers: Vec<Entity> = sim.world.query_filtered::<Entity, With<Layer>>().iter(&sim.world).collect();
     layers.sort_by_key(|e| e.to_bits());
     let mut x = Vec::new();
@@ -24,18 +23,6 @@ fn frame_record(sim: &mut Simulation, stats: &FrameStats) -> (String, Vec<[u64; 
         }
     }
     (line.to_string(), x)
-}
-
-/// Drops every wall time (keys ending in `ms`) from a stats line.
-fn strip_timings(v: &mut serde_json::Value) {
-    match v {
-        serde_json::Value::Object(map) => {
-            map.retain(|k, _| !k.ends_with("ms"));
-            map.values_mut().for_each(strip_timings);
-        }
-        serde_json::Value::Array(list) => list.iter_mut().for_each(strip_timings),
-        _ => {}
-    }
 }
 
 /// Runs `frames` frames of `scene` uninterrupted and again with a checkpoint after frame `at`

@@ -46,27 +46,9 @@ fn refused(out: &Output, words: &[&str]) {
     }
 }
 
-/// Drops every wall time (keys ending in `ms`) from a stats line.
-fn strip_timings(v: &mut serde_json::Value) {
-    match v {
-        serde_json::Value::Object(map) => {
-            map.retain(|k, _| !k.ends_with("ms"));
-            map.values_mut().for_each(strip_timings);
-        }
-        serde_json::Value::Array(list) => list.iter_mut().for_each(strip_timings),
-        _ => {}
-    }
-}
-
 fn stats(out: &Path) -> Vec<serde_json::Value> {
     let text = std::fs::read_to_string(out.join("stats.jsonl")).unwrap();
-    text.lines()
-        .map(|l| {
-            let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
-            strip_timings(&mut v);
-            v
-        })
-        .collect()
+    text.lines().map(|l| skinsim_systems::without_timings(serde_json::from_str(l).unwrap())).collect()
 }
 
 /// Every OBJ frame under `out`/obj, by its path below it.
