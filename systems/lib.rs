@@ -6,6 +6,7 @@ pub mod assemble;
 pub mod attach;
 pub mod capture;
 pub mod checkpoint;
+mod checkpoint_restore;
 pub mod inspect;
 pub mod kernels;
 mod layer_arrays;

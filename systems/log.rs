@@ -41,15 +41,6 @@ pub fn wants_logging(sink: Option<Res<RerunSink>>, obj: Option<Res<ObjExport>>, 
     sink.is_some() || obj.is_some() || usd.is_some()
 }
 
-/// What logging carries from frame to frame that a checkpoint saves (`checkpoint`): whether
-/// frame 0 (the rest state) is written, and each layer's colour scale once fixed. A resumed
-/// run's log then neither writes frame 0 again nor rescales its colours.
-#[derive(Resource, Clone, Debug, Default, PartialEq)]
-pub struct LogState {
-    pub rest_logged: bool,
-    pub colour_scales: Vec<(Entity, f64)>,
-}
-
 #[derive(Default)]
 pub struct RenderCache {
     meshes: HashMap<Entity, RenderMesh>,

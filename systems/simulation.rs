@@ -63,7 +63,7 @@ impl Simulation {
     pub fn new(scene: &BuiltScene) -> Self {
         let mut world = World::new();
         let patches = spawn(&mut world, scene);
-        world.init_resource::<crate::log::LogState>();
+        world.init_resource::<LogState>();
         Simulation { world, schedule: build_schedule(), patches }
     }
 

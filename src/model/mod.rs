@@ -9,6 +9,7 @@ use glam::{DMat2, DMat3, DVec2, DVec3};
 use crate::physics::{ConstitutiveModel, HingeModel, HingeRest, Lame};
 
 mod anchors;
+pub mod checkpoint;
 mod keyframes;
 mod maps;
 mod motion;

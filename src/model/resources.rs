@@ -151,3 +151,12 @@ pub enum Failure {
 /// A simulation failure (NaN, breakdown): the run stops after the frame that set it.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct SimFailure(pub Option<Failure>);
+
+/// What logging carries from frame to frame that a checkpoint saves (`systems::checkpoint`): whether
+/// frame 0 (the rest state) is written, and each layer's colour scale once fixed. A resumed
+/// run's log then neither writes frame 0 again nor rescales its colours.
+#[derive(Resource, Clone, Debug, Default, PartialEq)]
+pub struct LogState {
+    pub rest_logged: bool,
+    pub colour_scales: Vec<(Entity, f64)>,
+}

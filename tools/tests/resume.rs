@@ -111,14 +111,21 @@ fn killed_run_resumes_bit_identically(name: &str, rel: &str, frames: u32, every:
     assert_eq!(index.recording_ids.len(), 1, "{name}: one recording");
 }
 
+/// The scratch folder of a test that passed, removed (a kernel run's outputs are 50-80 MB).
+fn clean(name: &str) {
+    let _ = std::fs::remove_dir_all(std::env::temp_dir().join(format!("skinsim-resume-{}-{name}", std::process::id())));
+}
+
 #[test]
 fn a_killed_remeshing_run_resumes_bit_identically() {
     killed_run_resumes_bit_identically("remesh", "lk14/remesh_one_layer_quick.ron", 8, 2, 5, &[]);
+    clean("remesh");
 }
 
 #[test]
 fn a_killed_anchor_run_resumes_bit_identically() {
     killed_run_resumes_bit_identically("anchor", "kck18/crease_quick.ron", 12, 3, 7, &["--export", "obj"]);
+    clean("anchor");
 }
 
 /// The kernel scene also exports USD: the resumed stage is the uninterrupted one, byte for byte.
@@ -130,6 +137,7 @@ fn a_killed_kernel_run_resumes_bit_identically_with_its_usd_stage() {
     let stage = |run: &str| std::fs::read(d.join(run).join("skinsim.usdc")).unwrap();
     assert!(stage("whole") == stage("cut"), "the resumed USD stage differs");
     assert!(!d.join("cut/.skinsim.usdc.spool").exists(), "the finished run leaves no spool");
+    clean(name);
 }
 
 #[test]
@@ -162,6 +170,7 @@ fn a_resume_is_refused_on_a_changed_scene_another_thread_count_or_a_bad_checkpoi
     assert_eq!(failed.status.code(), Some(1), "{err}");
     assert!(err.contains("cannot write the checkpoint") && err.contains("checkpoint.cbor"), "{err}");
     assert!(err.contains("frames 1-2 are complete"), "{err}");
+    clean("refused");
 }
 
 /// SIGTERM (a farm's preemption) with checkpoints on: the run saves the frame it finished, and
@@ -195,4 +204,5 @@ fn a_terminated_run_checkpoints_the_frame_it_finished() {
     let err = String::from_utf8_lossy(&resumed.stderr);
     assert!(err.contains(&format!("1 frames (resumed after frame {written})")), "{err}");
     assert_eq!(stats(&out).len() as u32, written + 1);
+    clean("term");
 }
