@@ -54,8 +54,20 @@ pub fn metis_nested_dissection(col_ptr: &[u32], row_idx: &[u32]) -> Option<Vec<u
             iperm.as_mut_ptr(),
         )
     };
+    if status != metis_sys::rstatus_et_METIS_OK {
+        return None;
+    }
+    // METIS's internal errors raise SIGTERM, which the command line keeps blocked
+    // (skinsim_tools::signals), so METIS may go on after one: use only a true permutation.
+    let mut seen = vec![false; n];
+    for &v in &perm {
+        let slot = seen.get_mut(usize::try_from(v).ok()?)?;
+        if std::mem::replace(slot, true) {
+            return None;
+        }
+    }
     // METIS: row i of the permuted matrix is row perm[i] of the original.
-    (status == metis_sys::rstatus_et_METIS_OK).then(|| perm.into_iter().map(|v| v as u32).collect())
+    Some(perm.into_iter().map(|v| v as u32).collect())
 }
 
 /// Vertex elimination order. `adjacency` must be symmetric (both directions listed).

@@ -12,6 +12,7 @@ pub mod plot;
 pub mod report;
 pub mod resume;
 pub mod rrd_sink;
+pub mod signals;
 pub mod skin_section;
 pub mod timing;
 pub mod wrinkles;

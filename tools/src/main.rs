@@ -322,6 +322,11 @@ fn positive_scale(s: &str) -> Result<f64, String> {
 }
 
 fn main() -> ExitCode {
+    // Before any thread starts: every thread inherits the blocked signals.
+    if let Err(e) = skinsim_tools::signals::take_over() {
+        eprintln!("error: cannot set up the handling of Ctrl-C and SIGTERM: {e}");
+        return ExitCode::from(1);
+    }
     let cli = Cli::parse();
     tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
@@ -621,7 +626,7 @@ fn run(args: RunArgs) -> ExitCode {
     let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     {
         let flag = interrupted.clone();
-        let _ = ctrlc::set_handler(move || {
+        skinsim_tools::signals::on_signal(move |_| {
             if flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
                 eprintln!("\nerror: interrupted again: stopping now");
                 std::process::exit(INTERRUPTED as i32);

@@ -195,18 +195,17 @@ fn a_terminated_run_checkpoints_the_frame_it_finished() {
         assert!(started.elapsed().as_secs() < 120, "fewer than 3 frames written");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    // (a SIGTERM sent in a fast run's first frames is sometimes never handled: 3 of 6 by hand
-    // on 2026-12-07, with or without checkpoints; not yet understood, and issue 66 stays open
-    // for it. Until the run ends the signal is sent again: the run takes the first it sees.)
-    for _ in 0..20 {
-        assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
-        let asked = std::time::Instant::now();
-        while child.try_wait().unwrap().is_none() && asked.elapsed().as_secs() < 3 {
-            std::thread::sleep(std::time::Duration::from_millis(20));
-        }
-        if child.try_wait().unwrap().is_some() {
-            break;
-        }
+    // One signal, in the run's first frames: it used to be lost when it came while METIS
+    // ordered a matrix (skinsim_tools::signals). The bound only keeps a lost one from hanging
+    // the suite; a frame of this scene takes milliseconds.
+    assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    let asked = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() && asked.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    if child.try_wait().unwrap().is_none() {
+        let _ = child.kill();
+        panic!("the run went on 60 s after SIGTERM");
     }
     let stopped = child.wait_with_output().unwrap();
     assert_eq!(stopped.status.code(), Some(130), "{}", String::from_utf8_lossy(&stopped.stderr));
