@@ -626,7 +626,7 @@ fn run(args: RunArgs) -> ExitCode {
     let interrupted = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     {
         let flag = interrupted.clone();
-        skinsim_tools::signals::on_signal(move |_| {
+        skinsim_tools::signals::on_signal(move || {
             if flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
                 eprintln!("\nerror: interrupted again: stopping now");
                 std::process::exit(INTERRUPTED as i32);
