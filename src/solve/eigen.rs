@@ -94,6 +94,21 @@ pub fn smallest(
     }
 }
 
+/// The lowest Rayleigh quotient over the span of `columns` (Rayleigh-Ritz): its value and unit
+/// vector; None when the columns span nothing.
+pub fn lowest_in_span(columns: Vec<Vec<f64>>, apply: &mut dyn FnMut(&[f64], &mut [f64])) -> Option<(f64, Vec<f64>)> {
+    let (q, hq) = orthonormal(columns, apply);
+    let n = q.first()?.len();
+    let (values, vectors) = ritz(&q, &hq);
+    let mut x = vec![0.0; n];
+    for (j, qj) in q.iter().enumerate() {
+        axpy(&mut x, vectors[(j, 0)], qj);
+    }
+    let length = norm(&x);
+    x.iter_mut().for_each(|v| *v /= length);
+    Some((values[0], x))
+}
+
 /// Modified Gram-Schmidt, twice, dropping dependent columns; returns the columns and H times them.
 fn orthonormal(columns: Vec<Vec<f64>>, apply: &mut dyn FnMut(&[f64], &mut [f64])) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let mut kept: Vec<Vec<f64>> = Vec::with_capacity(columns.len());

@@ -202,6 +202,35 @@ impl CholeskySolver {
         Some(self.negative_pivots.len())
     }
 
+    /// Directions of negative curvature read from the last `inertia` factor, one per negative
+    /// pivot, for up to `count` of the most negative (issue 67 item 6; More and Sorensen 1979).
+    /// With P A P^T = L D L^T, d_k = P^T L^-T e_k has d_k^T A d_k = D_kk < 0, and d_j^T A d_k = 0
+    /// for j != k: every combination of them has negative curvature. A d_k = D_kk P^T L e_k, so
+    /// each is one solve with the same factor.
+    pub(crate) fn negative_pivot_directions(&mut self, count: usize) -> Vec<Vec<f64>> {
+        assert!(!self.ldl.is_empty(), "negative_pivot_directions after a successful inertia");
+        let mut columns: Vec<usize> =
+            self.pivots.iter().enumerate().filter(|&(_, &k)| self.ldl[k] < 0.0).map(|(j, _)| j).collect();
+        // (most negative first; ties by column: deterministic)
+        columns.sort_by(|&a, &b| self.ldl[self.pivots[a]].total_cmp(&self.ldl[self.pivots[b]]).then(a.cmp(&b)));
+        columns.truncate(count);
+        let n = self.pivots.len();
+        let fwd: Option<Vec<usize>> = self.symbolic.perm().map(|p| p.arrays().0.iter().map(|&i| i as usize).collect());
+        columns
+            .into_iter()
+            .map(|j| {
+                let mut b = vec![0.0; n];
+                let d = self.ldl[self.pivots[j]];
+                for (row, l) in l_column(&self.symbolic, &self.ldl, j) {
+                    let original = fwd.as_ref().map_or(row, |f| f[row]);
+                    b[original] = d * if row == j { 1.0 } else { l };
+                }
+                self.solve_ldl(&mut b);
+                b
+            })
+            .collect()
+    }
+
     /// Solves A x = rhs in place with the last `inertia` factor (A's LDL^T).
     pub(crate) fn solve_ldl(&mut self, rhs: &mut [f64]) {
         assert!(!self.ldl.is_empty(), "solve_ldl after a successful inertia");
@@ -300,6 +329,29 @@ fn supernode_blocks(s: &SymbolicSupernodalCholesky<u32>) -> impl Iterator<Item =
     })
 }
 
+/// Column `j` of an LDL^T factor stored on `symbolic` (rows in the factor's own order, the
+/// diagonal first, where faer keeps D_jj).
+fn l_column<'a>(symbolic: &'a SymbolicCholesky<u32>, values: &'a [f64], j: usize) -> Vec<(usize, f64)> {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let span = s.col_ptr()[j] as usize..s.col_ptr()[j + 1] as usize;
+            s.row_idx()[span.clone()].iter().zip(&values[span]).map(|(&r, &v)| (r as usize, v)).collect()
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            let begin = s.supernode_begin();
+            let k = begin.partition_point(|&b| b as usize <= j) - 1;
+            let (offset, rows, cols) = supernode_blocks(s).nth(k).expect("a supernode holds every column");
+            let (first, jj) = (begin[k] as usize, j - begin[k] as usize);
+            let below = &s.row_idx()[s.col_ptr_for_row_idx()[k] as usize..s.col_ptr_for_row_idx()[k + 1] as usize];
+            let column = &values[offset + jj * rows..offset + (jj + 1) * rows];
+            (jj..cols)
+                .map(|i| (first + i, column[i]))
+                .chain(below.iter().zip(&column[cols..]).map(|(&r, &v)| (r as usize, v)))
+                .collect()
+        }
+    }
+}
+
 /// The number of negative entries of D in an LDL^T factor (its matrix's negative inertia).
 pub(super) fn negative_pivots(symbolic: &SymbolicCholesky<u32>, l_values: &[f64]) -> usize {
     pivot_positions(symbolic).iter().filter(|&&k| l_values[k] < 0.0).count()
@@ -317,5 +369,142 @@ pub(crate) fn symmetric_product_into(col_ptr: &[u32], row_idx: &[u32], values: &
                 y[c] += v * x[r];
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+
+    use super::*;
+    use crate::solve::{Elements, SpringElem};
+
+    /// A grid of `nx` x `ny` vertices joined by springs along and across its cells, and a
+    /// symmetric matrix on that pattern: a Laplacian per coordinate less a spread of shifts
+    /// (some eigenvalues negative), with a weak coupling between coordinates.
+    fn indefinite(nx: usize, ny: usize) -> (Pattern, Vec<f64>) {
+        let x: Vec<glam::DVec3> =
+            (0..nx * ny).map(|i| glam::DVec3::new((i % nx) as f64, (i / nx) as f64, 0.0)).collect();
+        let mut springs = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let v = (j * nx + i) as u32;
+                for (di, dj) in [(1, 0), (0, 1), (1, 1)] {
+                    if i + di < nx && j + dj < ny {
+                        springs.push(SpringElem { v: [v, ((j + dj) * nx + i + di) as u32], k: 1.0 });
+                    }
+                }
+            }
+        }
+        let p = Pattern::build(&x, &vec![[false; 3]; nx * ny], &[], &Elements { springs, ..Default::default() });
+        let mut h = vec![0.0; p.nnz()];
+        for c in 0..p.n {
+            let span = p.col_ptr[c] as usize..p.col_ptr[c + 1] as usize;
+            for (&r, v) in p.row_idx[span.clone()].iter().zip(&mut h[span]) {
+                let r = r as usize;
+                *v = if r == c {
+                    6.0 - 7.0 * (((c * 7919) % 97) as f64 / 97.0)
+                } else if r % 3 == c % 3 {
+                    -1.0
+                } else {
+                    0.05
+                };
+            }
+        }
+        (p, h)
+    }
+
+    fn dense(p: &Pattern, h: &[f64]) -> Mat<f64> {
+        let mut a = Mat::zeros(p.n, p.n);
+        for c in 0..p.n {
+            let span = p.col_ptr[c] as usize..p.col_ptr[c + 1] as usize;
+            for (&r, &v) in p.row_idx[span.clone()].iter().zip(&h[span]) {
+                let r = r as usize;
+                a[(r, c)] = v;
+                a[(c, r)] = v;
+            }
+        }
+        a
+    }
+
+    fn quadratic(a: &Mat<f64>, x: &[f64], y: &[f64]) -> f64 {
+        (0..x.len()).map(|i| (0..y.len()).map(|j| x[i] * a[(i, j)] * y[j]).sum::<f64>()).sum()
+    }
+
+    /// Issue 67 item 6: every negative pivot's direction has the pivot as its curvature, the
+    /// directions are conjugate, and together they span as many dimensions of negative curvature
+    /// as H has negative eigenvalues (a dense eigen-solve); the lowest curvature in their span
+    /// lies at or above H's lowest eigenvalue.
+    #[test]
+    fn negative_pivots_give_conjugate_directions_of_negative_curvature() {
+        for (nx, ny, supernodal) in [(3, 2, false), (12, 10, false), (12, 10, true)] {
+            let (p, h) = indefinite(nx, ny);
+            let mut chol = CholeskySolver::analyze(&p);
+            if supernodal {
+                let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
+                let params = CholeskySymbolicParams {
+                    supernodal_flop_ratio_threshold: faer::sparse::linalg::SupernodalThreshold::FORCE_SUPERNODAL,
+                    ..Default::default()
+                };
+                chol.symbolic = factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, params).unwrap();
+            }
+            let negative = chol.inertia(&p, &h).expect("no zero pivot");
+            let a = dense(&p, &h);
+            let eigen = a.self_adjoint_eigen(Side::Lower).unwrap();
+            let values: Vec<f64> = (0..p.n).map(|i| eigen.S()[i]).collect();
+            let expected = values.iter().filter(|&&v| v < 0.0).count();
+            assert_eq!(negative, expected, "{nx} x {ny}: Sylvester's law");
+            assert!(negative >= 2, "{nx} x {ny}: the test needs several negative modes");
+            assert_eq!(supernodal, matches!(chol.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)));
+            let dirs = chol.negative_pivot_directions(usize::MAX);
+            assert_eq!(dirs.len(), negative);
+            let mut pivots: Vec<f64> = chol.negative_pivots.iter().map(|&k| chol.ldl[k]).collect();
+            pivots.sort_by(f64::total_cmp);
+            let scale = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (i, d) in dirs.iter().enumerate() {
+                let curvature = quadratic(&a, d, d);
+                assert!(curvature < 0.0, "{nx} x {ny} (supernodal {supernodal}): pivot {i}");
+                assert!((curvature - pivots[i]).abs() < 1e-9 * scale * quadratic(&Mat::identity(p.n, p.n), d, d));
+                for e in &dirs[..i] {
+                    let cross = quadratic(&a, d, e);
+                    assert!(
+                        cross.abs()
+                            < 1e-9
+                                * scale
+                                * (d.iter().map(|v| v * v).sum::<f64>() * e.iter().map(|v| v * v).sum::<f64>()).sqrt()
+                    );
+                }
+            }
+            let mut apply = |x: &[f64], y: &mut [f64]| symmetric_product_into(&p.col_ptr, &p.row_idx, &h, x, y);
+            let (lowest, v) = super::super::eigen::lowest_in_span(dirs.clone(), &mut apply).unwrap();
+            assert!(lowest < 0.0 && lowest >= values[0] - 1e-9 * scale, "{lowest} against {}", values[0]);
+            assert!((quadratic(&a, &v, &v) - lowest).abs() < 1e-9 * scale);
+            println!(
+                "{nx} x {ny}: {negative} negative, supernodal {supernodal}, span's lowest {lowest:.4} against {:.4}",
+                values[0]
+            );
+        }
+    }
+
+    /// `StabilityTest::FactorModes`: the verdict's direction comes from the factor (no LOBPCG
+    /// iteration) and has the verdict's negative curvature; the default test's LOBPCG finds one
+    /// at least as negative.
+    #[test]
+    fn the_factor_modes_verdict_needs_no_eigen_solver() {
+        let (p, h) = indefinite(12, 10);
+        let a = dense(&p, &h);
+        let mut chol = CholeskySolver::analyze(&p);
+        let verdict = |chol: &mut CholeskySolver, modes| match super::super::stability::test(&p, chol, &h, modes) {
+            Some(super::super::stability::Verdict::Unstable { negative, curvature, direction, eigen_iterations }) => {
+                (negative, curvature, direction, eigen_iterations)
+            }
+            other => panic!("{other:?}"),
+        };
+        let (negative, curvature, direction, iterations) = verdict(&mut chol, true);
+        assert_eq!((negative, iterations), (76, 0));
+        assert!(curvature < 0.0);
+        assert!((quadratic(&a, &direction, &direction) - curvature).abs() < 1e-9 * curvature.abs());
+        let (_, lobpcg, _, iterations) = verdict(&mut chol, false);
+        assert!(iterations > 0 && lobpcg <= curvature, "{lobpcg} against {curvature}");
     }
 }

@@ -175,7 +175,10 @@ impl Loop {
         let clock = std::time::Instant::now();
         let (values, scale) = (&self.values, self.energy_scale);
         let left = match settings.stability_test {
-            StabilityTest::Inertia => self.leave_unstable(packed, pattern, chol, at.phi, settle, &energy_at),
+            StabilityTest::Inertia | StabilityTest::FactorModes => {
+                let modes = settings.stability_test == StabilityTest::FactorModes;
+                self.leave_unstable(packed, pattern, chol, (at.phi, settle, modes), &energy_at)
+            }
             StabilityTest::ShiftedCholesky => leave_saddle(packed, pattern, chol, values, at.phi, scale, &energy_at)
                 .map_or(Leave::Stay, Leave::Escape),
         };
@@ -214,12 +217,11 @@ impl Loop {
         packed: &PackedPatch,
         pattern: &Pattern,
         chol: &mut CholeskySolver,
-        phi: f64,
-        settle: bool,
+        (phi, settle, factor_modes): (f64, bool, bool),
         energy_at: &dyn Fn(&[DVec3]) -> f64,
     ) -> Leave {
         let (h, grad, energy_scale) = (&self.values, &self.grad, self.energy_scale);
-        match stability::test(pattern, chol, h) {
+        match stability::test(pattern, chol, h, factor_modes) {
             Some(Verdict::Stable) if settle => {
                 let mut dx: Vec<f64> = grad.iter().map(|g| -g).collect();
                 chol.solve_ldl(&mut dx);

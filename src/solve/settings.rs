@@ -75,6 +75,11 @@ pub enum StabilityTest {
     /// factorizations of H + sigma I (sigma x4 from 1e-6 mean |diag|) and inverse iteration;
     /// misses curvatures above -1e-9 mean |diag| (just past a critical load).
     ShiftedCholesky,
+    /// The inertia as `Inertia`; the escape along the most negative curvature in the span of
+    /// the factor's own negative-pivot directions (`CholeskySolver::negative_pivot_directions`:
+    /// one solve each, no eigen-solver; issue 67 item 6). LOBPCG as `Inertia` only where they
+    /// show no curvature above round-off.
+    FactorModes,
 }
 
 /// How a Newton step is made safe where the Hessian is indefinite (buckling): the step's

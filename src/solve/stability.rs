@@ -29,6 +29,8 @@ const TOLERANCE: f64 = 1e-2;
 /// there against 13 s for a definite one).
 const SHIFT: f64 = 2.0;
 const SHIFT_TRIES: u32 = 16;
+/// `StabilityTest::FactorModes`: the escape's span, in negative pivots (the most negative).
+const FACTOR_MODES: usize = 8;
 /// Inverse-iteration steps that return the constrained test's direction to the null space.
 const NULL_SPACE_STEPS: u32 = 4;
 /// A curvature below this fraction of the largest diagonal is round-off (a semidefinite H).
@@ -51,8 +53,10 @@ pub enum Verdict {
 }
 
 /// Tests the exact Hessian `h` (values on `pattern`); None when its LDL^T breaks down (a zero
-/// pivot: the caller decides).
-pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<Verdict> {
+/// pivot: the caller decides). With `factor_modes`, the direction is the most negative
+/// curvature in the span of the factor's FACTOR_MODES most negative pivots' directions
+/// (`StabilityTest::FactorModes`), and LOBPCG runs only where that span shows none.
+pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64], factor_modes: bool) -> Option<Verdict> {
     let negative = chol.inertia(pattern, h)?;
     tracing::debug!(negative, "inertia");
     if negative == 0 {
@@ -61,6 +65,15 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64]) -> Option<V
     let n = pattern.n;
     let max_diag = pattern.diag.iter().fold(0.0f64, |m, &d| m.max(h[d as usize].abs()));
     let mut apply = |x: &[f64], y: &mut [f64]| symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, h, x, y);
+    if factor_modes {
+        let directions = chol.negative_pivot_directions(FACTOR_MODES);
+        if let Some((curvature, direction)) = eigen::lowest_in_span(directions, &mut apply) {
+            tracing::debug!(negative, curvature, "unstable (factor modes)");
+            if curvature < -ROUND_OFF_CURVATURE * max_diag {
+                return Some(Verdict::Unstable { negative, curvature, direction, eigen_iterations: 0 });
+            }
+        }
+    }
     let block = (negative + 1).min(BLOCK);
     let mut pair = {
         let mut precondition = |r: &mut [f64]| chol.solve_abs(r);
