@@ -425,7 +425,7 @@ fn the_inertia_test_agrees_with_a_dense_eigen_solve() {
         );
         assert_eq!(negative, expected, "the dense spectrum at {ratio} eps_cr");
         let mut chol = skinsim::solve::linear::CholeskySolver::analyze(&pattern);
-        match test(&pattern, &mut chol, &values, false).expect("an LDL^T") {
+        match test(&pattern, &mut chol, &values, skinsim::solve::StabilityTest::Inertia).expect("an LDL^T") {
             Verdict::Stable => assert_eq!(expected, 0, "{ratio} eps_cr: called stable"),
             Verdict::Unstable { negative: k, curvature, direction, .. } => {
                 assert_eq!(k, expected, "{ratio} eps_cr: inertia");

@@ -222,7 +222,9 @@ mod tests {
             let dense = dense(&pattern, &values);
             let negative = nalgebra::SymmetricEigen::new(dense).eigenvalues.iter().filter(|&&l| l < 0.0).count();
             let mut chol = super::super::linear::CholeskySolver::analyze(&pattern);
-            let verdict = super::super::stability::test(&pattern, &mut chol, &values, false).expect("an LDL^T");
+            let verdict =
+                super::super::stability::test(&pattern, &mut chol, &values, super::super::StabilityTest::Inertia)
+                    .expect("an LDL^T");
             match verdict {
                 super::super::stability::Verdict::Stable => assert_eq!(negative, 0, "{stretch}"),
                 super::super::stability::Verdict::Unstable { negative: k, .. } => assert_eq!(k, negative, "{stretch}"),
@@ -274,7 +276,9 @@ mod tests {
         for &d in &pattern.diag {
             shifted[d as usize] += 1e-9 * scale;
         }
-        match super::super::stability::test(&pattern, &mut chol, &shifted, false).expect("an LDL^T") {
+        match super::super::stability::test(&pattern, &mut chol, &shifted, super::super::StabilityTest::Inertia)
+            .expect("an LDL^T")
+        {
             super::super::stability::Verdict::Stable => assert_eq!(negative, 0),
             super::super::stability::Verdict::Unstable { negative: k, .. } => assert_eq!(k, negative),
         }

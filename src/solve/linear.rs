@@ -494,17 +494,17 @@ mod tests {
         let (p, h) = indefinite(12, 10);
         let a = dense(&p, &h);
         let mut chol = CholeskySolver::analyze(&p);
-        let verdict = |chol: &mut CholeskySolver, modes| match super::super::stability::test(&p, chol, &h, modes) {
+        let verdict = |chol: &mut CholeskySolver, how| match super::super::stability::test(&p, chol, &h, how) {
             Some(super::super::stability::Verdict::Unstable { negative, curvature, direction, eigen_iterations }) => {
                 (negative, curvature, direction, eigen_iterations)
             }
             other => panic!("{other:?}"),
         };
-        let (negative, curvature, direction, iterations) = verdict(&mut chol, true);
+        let (negative, curvature, direction, iterations) = verdict(&mut chol, crate::solve::StabilityTest::FactorModes);
         assert_eq!((negative, iterations), (76, 0));
         assert!(curvature < 0.0);
         assert!((quadratic(&a, &direction, &direction) - curvature).abs() < 1e-9 * curvature.abs());
-        let (_, lobpcg, _, iterations) = verdict(&mut chol, false);
+        let (_, lobpcg, _, iterations) = verdict(&mut chol, crate::solve::StabilityTest::Inertia);
         assert!(iterations > 0 && lobpcg <= curvature, "{lobpcg} against {curvature}");
     }
 }

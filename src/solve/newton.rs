@@ -176,8 +176,7 @@ impl Loop {
         let (values, scale) = (&self.values, self.energy_scale);
         let left = match settings.stability_test {
             StabilityTest::Inertia | StabilityTest::FactorModes => {
-                let modes = settings.stability_test == StabilityTest::FactorModes;
-                self.leave_unstable(packed, pattern, chol, (at.phi, settle, modes), &energy_at)
+                self.leave_unstable(packed, pattern, chol, (at.phi, settle, settings.stability_test), &energy_at)
             }
             StabilityTest::ShiftedCholesky => leave_saddle(packed, pattern, chol, values, at.phi, scale, &energy_at)
                 .map_or(Leave::Stay, Leave::Escape),
@@ -217,11 +216,11 @@ impl Loop {
         packed: &PackedPatch,
         pattern: &Pattern,
         chol: &mut CholeskySolver,
-        (phi, settle, factor_modes): (f64, bool, bool),
+        (phi, settle, how): (f64, bool, StabilityTest),
         energy_at: &dyn Fn(&[DVec3]) -> f64,
     ) -> Leave {
         let (h, grad, energy_scale) = (&self.values, &self.grad, self.energy_scale);
-        match stability::test(pattern, chol, h, factor_modes) {
+        match stability::test(pattern, chol, h, how) {
             Some(Verdict::Stable) if settle => {
                 let mut dx: Vec<f64> = grad.iter().map(|g| -g).collect();
                 chol.solve_ldl(&mut dx);

@@ -14,6 +14,7 @@ use super::eigen;
 use super::kkt::KktSystem;
 use super::linear::{symmetric_product_into, CholeskySolver};
 use super::pattern::Pattern;
+use super::settings::StabilityTest;
 
 /// LOBPCG: block size, iterations at most with each preconditioner, and the relative residual
 /// it stops at (an escape direction needs no more; on the H15 3D patch, 1132 unstable modes,
@@ -53,10 +54,11 @@ pub enum Verdict {
 }
 
 /// Tests the exact Hessian `h` (values on `pattern`); None when its LDL^T breaks down (a zero
-/// pivot: the caller decides). With `factor_modes`, the direction is the most negative
-/// curvature in the span of the factor's FACTOR_MODES most negative pivots' directions
-/// (`StabilityTest::FactorModes`), and LOBPCG runs only where that span shows none.
-pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64], factor_modes: bool) -> Option<Verdict> {
+/// pivot: the caller decides). `how`: `FactorModes` escapes along the most negative curvature
+/// in the span of the factor's FACTOR_MODES most negative pivots' directions, and runs LOBPCG
+/// only where that span shows none; otherwise LOBPCG. (Starting LOBPCG from that direction
+/// instead of fixed vectors was measured slower: `README.md`.)
+pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64], how: StabilityTest) -> Option<Verdict> {
     let negative = chol.inertia(pattern, h)?;
     tracing::debug!(negative, "inertia");
     if negative == 0 {
@@ -65,10 +67,10 @@ pub fn test(pattern: &Pattern, chol: &mut CholeskySolver, h: &[f64], factor_mode
     let n = pattern.n;
     let max_diag = pattern.diag.iter().fold(0.0f64, |m, &d| m.max(h[d as usize].abs()));
     let mut apply = |x: &[f64], y: &mut [f64]| symmetric_product_into(&pattern.col_ptr, &pattern.row_idx, h, x, y);
-    if factor_modes {
+    if how == StabilityTest::FactorModes {
         let directions = chol.negative_pivot_directions(FACTOR_MODES);
         if let Some((curvature, direction)) = eigen::lowest_in_span(directions, &mut apply) {
-            tracing::debug!(negative, curvature, "unstable (factor modes)");
+            tracing::debug!(negative, curvature, "factor modes");
             if curvature < -ROUND_OFF_CURVATURE * max_diag {
                 return Some(Verdict::Unstable { negative, curvature, direction, eigen_iterations: 0 });
             }
