@@ -98,13 +98,14 @@ fn count(what: &'static str, saved: usize, scene: usize) -> Result<(), RestoreEr
 }
 
 /// A layer's list made the saved one: entities the saved run no longer had are despawned, the
-/// ones it made are spawned (`spawn`) and mapped. Returns the list's entities, in saved order.
+/// ones it made are spawned (`spawn`, given the mapping so far) and mapped after. Returns the
+/// list's entities, in saved order.
 fn relist(
     world: &mut World,
     current: Vec<Entity>,
     saved: &[u64],
     remap: &mut Remap,
-    mut spawn: impl FnMut(&mut World, usize) -> Result<Entity, RestoreError>,
+    mut spawn: impl FnMut(&mut World, &Remap, usize) -> Result<Entity, RestoreError>,
 ) -> Result<Vec<Entity>, RestoreError> {
     if current.iter().map(|&e| bits(e)).eq(saved.iter().copied()) {
         return Ok(current);
@@ -114,16 +115,17 @@ fn relist(
         world.despawn(e);
     }
     let alive: HashSet<u64> = current.iter().map(|&e| bits(e)).filter(|b| keep.contains(b)).collect();
-    let mut out = Vec::with_capacity(saved.len());
+    let (mut out, mut made) = (Vec::with_capacity(saved.len()), Vec::new());
     for (i, &b) in saved.iter().enumerate() {
         if alive.contains(&b) {
             out.push(Entity::from_bits(b));
         } else {
-            let e = spawn(world, i)?;
-            remap.0.insert(b, e);
+            let e = spawn(world, remap, i)?;
+            made.push((b, e));
             out.push(e);
         }
     }
+    remap.0.extend(made);
     Ok(out)
 }
 
@@ -144,7 +146,7 @@ fn check_order<C: Component>(
 fn restore_vertices(world: &mut World, l: Entity, saved: &LayerState, remap: &mut Remap) -> Result<(), RestoreError> {
     let current = list::<LayerVertices>(world, l, |c| c.entities());
     let ids: Vec<u64> = saved.vertices.iter().map(|v| v.id).collect();
-    let spawn = |world: &mut World, i: usize| {
+    let spawn = |world: &mut World, _: &Remap, i: usize| {
         let v = &saved.vertices[i];
         Ok(world.spawn((VertexOf(l), MaterialPos(v.uv), RestPos(v.rest), Position(v.x))).id())
     };
@@ -160,14 +162,11 @@ fn restore_vertices(world: &mut World, l: Entity, saved: &LayerState, remap: &mu
 fn restore_faces(world: &mut World, l: Entity, saved: &LayerState, remap: &mut Remap) -> Result<(), RestoreError> {
     let current = list::<LayerFaces>(world, l, |c| c.entities());
     let ids: Vec<u64> = saved.faces.iter().map(|f| f.id).collect();
-    let spawn = |world: &mut World, i: usize| {
+    let spawn = |world: &mut World, remap: &Remap, i: usize| {
         let verts = remap.all(world, saved.faces[i].verts)?;
         Ok(world.spawn((FaceVerts(verts), FaceOf(l))).id())
     };
-    // (the closure borrows remap immutably; new faces are mapped after)
-    let mut fresh = Remap::default();
-    let ents = relist(world, current, &ids, &mut fresh, spawn)?;
-    remap.0.extend(fresh.0);
+    let ents = relist(world, current, &ids, remap, spawn)?;
     check_order::<LayerFaces>(world, l, |c| c.entities(), &ents, "faces")?;
     for (&e, f) in ents.iter().zip(&saved.faces) {
         let verts = remap.all(world, f.verts)?;
@@ -192,13 +191,11 @@ fn restore_faces(world: &mut World, l: Entity, saved: &LayerState, remap: &mut R
 fn restore_edges(world: &mut World, l: Entity, saved: &LayerState, remap: &mut Remap) -> Result<(), RestoreError> {
     let current = list::<LayerEdges>(world, l, |c| c.entities());
     let ids: Vec<u64> = saved.edges.iter().map(|d| d.id).collect();
-    let spawn = |world: &mut World, i: usize| {
+    let spawn = |world: &mut World, remap: &Remap, i: usize| {
         let verts = remap.all(world, saved.edges[i].verts)?;
         Ok(world.spawn((EdgeVerts(verts), EdgeOf(l))).id())
     };
-    let mut fresh = Remap::default();
-    let ents = relist(world, current, &ids, &mut fresh, spawn)?;
-    remap.0.extend(fresh.0);
+    let ents = relist(world, current, &ids, remap, spawn)?;
     check_order::<LayerEdges>(world, l, |c| c.entities(), &ents, "edges")?;
     for (&e, d) in ents.iter().zip(&saved.edges) {
         let verts = remap.all(world, d.verts)?;
@@ -245,10 +242,8 @@ fn restore_springs(world: &mut World, l: Entity, saved: &LayerState, remap: &mut
         SpringState::Point { id, .. } | SpringState::Face { id, .. } => *id,
     };
     let ids: Vec<u64> = saved.springs.iter().map(id).collect();
-    let spawn = |world: &mut World, _: usize| Ok(world.spawn(SpringOf(l)).id());
-    let mut fresh = Remap::default();
-    let ents = relist(world, current, &ids, &mut fresh, spawn)?;
-    remap.0.extend(fresh.0);
+    let spawn = |world: &mut World, _: &Remap, _: usize| Ok(world.spawn(SpringOf(l)).id());
+    let ents = relist(world, current, &ids, remap, spawn)?;
     check_order::<LayerSprings>(world, l, |c| c.entities(), &ents, "springs")?;
     for (&e, s) in ents.iter().zip(&saved.springs) {
         match *s {
