@@ -39,9 +39,6 @@ pub struct FrameOutcome {
     pub line_search_failures: u32,
     /// Times the solve left an unstable equilibrium along negative curvature.
     pub escapes: u32,
-    /// Iterations of the coarse start (`coarse.rs`) before the fine loop; not in `iterations`.
-    #[serde(skip_serializing_if = "is_zero")]
-    pub coarse_iterations: u32,
     /// Full steps under a held load taken back because the energy rose past their quadratic
     /// model (`constrained`; each counted in `iterations`).
     pub unmodelled_steps: u32,
@@ -83,7 +80,6 @@ impl FrameOutcome {
             regularized: sum(self.regularized, next.regularized),
             line_search_failures: sum(self.line_search_failures, next.line_search_failures),
             escapes: sum(self.escapes, next.escapes),
-            coarse_iterations: sum(self.coarse_iterations, next.coarse_iterations),
             unmodelled_steps: sum(self.unmodelled_steps, next.unmodelled_steps),
             factorizations: sum(self.factorizations, next.factorizations),
             cg_iterations: sum(self.cg_iterations, next.cg_iterations),
@@ -101,10 +97,6 @@ impl FrameOutcome {
         }
         *self = out;
     }
-}
-
-fn is_zero(n: &u32) -> bool {
-    *n == 0
 }
 
 /// Per-frame timers inside Newton (rapier's `counters`).

@@ -2,7 +2,6 @@
 //! scatter maps and symbolic factorization, and Newton with Armijo backtracking. Measured and
 //! rejected variants are recorded in `README.md` beside this file.
 
-pub mod coarse;
 mod constrained;
 pub mod constraints;
 mod contact;

@@ -34,7 +34,6 @@ pub(super) fn newton(
     let n = pattern.n;
     let start = FrameStart::begin(packed, settings, dt);
     let inertia = start.inertia();
-    let coarse_iterations = coarse_start(packed, pattern, settings, inertia.as_ref());
     let total = |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
     let energy_scale = packed.elements.energy_scale(packed.length_scale);
     let mut it = Loop {
@@ -111,38 +110,7 @@ pub(super) fn newton(
         }
     }
     start.finish(packed);
-    it.out.coarse_iterations = coarse_iterations.0;
-    it.out.counters.assemble_ms += coarse_iterations.1.counters.assemble_ms;
-    it.out.counters.factorize_ms += coarse_iterations.1.counters.factorize_ms;
-    it.out.counters.line_search_ms += coarse_iterations.1.counters.line_search_ms;
     Ok(it.out)
-}
-
-/// EXPERIMENT (issue 67): SKINSIM_COARSE="nx,ny" runs the coarse start before every solve.
-fn coarse_start(
-    packed: &mut PackedPatch,
-    pattern: &Pattern,
-    settings: &SolverSettings,
-    inertia: Option<&super::iteration::Inertia>,
-) -> (u32, FrameOutcome) {
-    let mut work = FrameOutcome::default();
-    let Some(cells) = std::env::var("SKINSIM_COARSE").ok().and_then(|v| {
-        let (a, b) = v.split_once(',')?;
-        Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?))
-    }) else {
-        return (0, work);
-    };
-    let mut coarse = match packed.cache.coarse.take() {
-        Some(c) if c.fits(pattern) => c,
-        _ => {
-            let c = super::coarse::CoarseStart::build(&packed.state.x, pattern, cells);
-            tracing::debug!(dofs = c.dofs(), "coarse start built");
-            c
-        }
-    };
-    let its = coarse.solve(packed, pattern, settings, inertia, &mut work);
-    packed.cache.coarse = Some(coarse);
-    (its, work)
 }
 
 /// The unconstrained loop's buffers and record.

@@ -126,15 +126,12 @@ pub struct SolverCache {
     pub accepted: f64,
     /// A resumed run's KKT memory, for the first KKT system built (`KktSystem::remember`).
     pub kkt_memory: Option<super::kkt::KktMemory>,
-    /// The coarse start's prolongation and system (`coarse.rs`), for the pattern it names.
-    pub coarse: Option<super::coarse::CoarseStart>,
 }
 
 impl SolverCache {
     pub fn invalidate(&mut self) {
         self.system = None;
         self.kkt = None;
-        self.coarse = None;
     }
 }
 
