@@ -285,20 +285,6 @@ pub(super) fn search_step(
         let flat = i == 0 && residual < ADAPTIVE_SWITCH && trial <= phi + noise;
         if trial.is_finite() && (armijo || flat) {
             accepted = true;
-            if i == 0 && armijo && first == 1.0 && packed.contact.is_none() {
-                if let Some(k) = std::env::var("SKINSIM_EXPAND").ok().and_then(|v| v.parse::<u32>().ok()) {
-                    let mut best = trial;
-                    for _ in 0..k {
-                        step(&mut packed.state.x, &x0, &pattern.dof, dx, 2.0 * alpha);
-                        let t = total(&energy(&packed.elements, &packed.state.x), &packed.state.x);
-                        if !(t.is_finite() && t < best) {
-                            break;
-                        }
-                        (best, alpha) = (t, 2.0 * alpha);
-                    }
-                    step(&mut packed.state.x, &x0, &pattern.dof, dx, alpha);
-                }
-            }
             break;
         }
         alpha *= 0.5;

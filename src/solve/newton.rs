@@ -44,7 +44,6 @@ pub(super) fn newton(
         scratch: Vec::new(),
         out: FrameOutcome::default(),
         relisted: false,
-        last_shift: None,
         progress: Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n),
     };
 
@@ -125,7 +124,6 @@ struct Loop {
     out: FrameOutcome,
     /// Contact: the pair list changed since the pattern's maps were made (`contact::fit`).
     relisted: bool,
-    last_shift: Option<f64>,
     progress: Progress,
 }
 
@@ -292,17 +290,9 @@ impl Loop {
                 return Ok(false);
             }
             self.out.regularized += 1;
-            let ladder = std::env::var("SKINSIM_LADDER").ok().and_then(|v| v.parse::<f64>().ok());
-            let (first, growth, tries) = match (ladder, self.last_shift) {
-                (Some(g), Some(last)) => (last / g, g, 40),
-                (Some(g), None) => (1e-8, g, 40),
-                _ => (1e-8, 100.0, 8),
-            };
-            let Some(sigma) = factorize_shifted(chol, pattern, &self.values, &mut self.scratch, first, growth, tries)
-            else {
+            if factorize_shifted(chol, pattern, &self.values, &mut self.scratch, 1e-8, 100.0, 8).is_none() {
                 return Err(SolveError::Unfactorizable);
-            };
-            self.last_shift = Some(sigma / mean_abs_diagonal(pattern, &self.values).max(f64::MIN_POSITIVE));
+            }
             factorized_matrix = &self.scratch;
         }
         let clock = std::time::Instant::now();

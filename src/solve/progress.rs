@@ -70,9 +70,8 @@ impl Progress {
         }
         self.history.push(residual);
         let h = &self.history;
-        let floor: f64 = std::env::var("SKINSIM_FLOOR").ok().and_then(|v| v.parse().ok()).unwrap_or(1e3);
         let stalled =
-            h.len() > STALL && residual <= floor * self.tolerance && residual >= PROGRESS * h[h.len() - 1 - STALL];
+            h.len() > STALL && residual <= 1e3 * self.tolerance && residual >= PROGRESS * h[h.len() - 1 - STALL];
         self.empty || residual <= self.tolerance || stalled
     }
 

@@ -28,14 +28,7 @@ impl Element for MembraneElem {
         membrane::energy(self.model, self.lame, &self.rest, &gather(x, &self.v))
     }
     fn eval(&self, x: &[DVec3], filter: Filter) -> Self::Local {
-        static OVERRIDE: std::sync::OnceLock<Option<Filter>> = std::sync::OnceLock::new();
-        let o = OVERRIDE.get_or_init(|| match std::env::var("SKINSIM_MEMBRANE_FILTER").ok().as_deref() {
-            Some("Exact") => Some(Filter::Exact),
-            Some("Clamp") => Some(Filter::Clamp),
-            Some("Abs") => Some(Filter::Abs),
-            _ => None,
-        });
-        membrane::eval(self.model, self.lame, &self.rest, &gather(x, &self.v), o.unwrap_or(filter))
+        membrane::eval(self.model, self.lame, &self.rest, &gather(x, &self.v), filter)
     }
     fn unit_energy(&self, _length: f64) -> f64 {
         (self.lame.mu + self.lame.lambda.abs()) * self.rest.volume
