@@ -5,7 +5,6 @@
 mod constrained;
 pub mod constraints;
 mod contact;
-mod damped;
 pub mod eigen;
 pub mod element;
 pub mod elements;

@@ -4,12 +4,11 @@
 use glam::DVec3;
 
 use super::contact;
-use super::damped;
 use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
     evaluate, factorize_shifted, line_search, mean_abs_diagonal, step, symmetric_product, symmetric_product_into,
-    timed, FrameOutcome, FrameStart, Inertia, Search, MAX_ESCAPES, ROUND_OFF,
+    timed, FrameOutcome, FrameStart, Search, MAX_ESCAPES, ROUND_OFF,
 };
 use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
@@ -32,30 +31,10 @@ pub(super) fn newton(
     settings: &SolverSettings,
     dt: f64,
 ) -> Result<FrameOutcome, SolveError> {
-    if settings.stability_test == StabilityTest::Damped
-        && !settings.mode.is_dynamic()
-        && std::env::var("SKINSIM_ABAQUS").is_ok()
-    {
-        packed.state.sync_ties();
-        return damped::increment(packed, pattern, chol, settings);
-    }
-    let start = FrameStart::begin(packed, settings, dt);
-    let out = minimize(packed, pattern, chol, settings, start.inertia().as_ref())?;
-    start.finish(packed);
-    Ok(out)
-}
-
-/// Newton's loop on the potential (plus `inertia`'s term when given: implicit Euler's, or
-/// `damped::flow`'s viscous one); the stability check runs only without it.
-pub(super) fn minimize(
-    packed: &mut PackedPatch,
-    pattern: &mut Pattern,
-    chol: &mut CholeskySolver,
-    settings: &SolverSettings,
-    inertia: Option<&Inertia>,
-) -> Result<FrameOutcome, SolveError> {
     let n = pattern.n;
-    let total = |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.map_or(0.0, |i| i.energy(x));
+    let start = FrameStart::begin(packed, settings, dt);
+    let inertia = start.inertia();
+    let total = |parts: &EnergyParts, x: &[DVec3]| parts.total() + inertia.as_ref().map_or(0.0, |i| i.energy(x));
     let energy_scale = packed.elements.energy_scale(packed.length_scale);
     let mut it = Loop {
         energy_scale,
@@ -65,7 +44,6 @@ pub(super) fn minimize(
         scratch: Vec::new(),
         out: FrameOutcome::default(),
         relisted: false,
-        flow: None,
         progress: Progress::new(settings.tolerance, settings.projection, energy_scale, packed.length_scale, n),
     };
 
@@ -76,11 +54,12 @@ pub(super) fn minimize(
             timed(ms, || contact::reanalyse(chol, pattern, settings));
             it.values.resize(pattern.nnz(), 0.0);
         }
-        let mut assembly = evaluate(packed, pattern, filter, inertia, &mut it.grad, &mut it.values, &mut it.out);
+        let mut assembly =
+            evaluate(packed, pattern, filter, inertia.as_ref(), &mut it.grad, &mut it.values, &mut it.out);
         let stiffened =
             timed(&mut it.out.counters.contact_ms, || contact::stiffen(packed, pattern, &it.grad, &it.values));
         if stiffened {
-            assembly = evaluate(packed, pattern, filter, inertia, &mut it.grad, &mut it.values, &mut it.out);
+            assembly = evaluate(packed, pattern, filter, inertia.as_ref(), &mut it.grad, &mut it.values, &mut it.out);
         }
         let Assembly { parts, force_scale } = assembly;
         let phi = total(&parts, &packed.state.x);
@@ -130,6 +109,7 @@ pub(super) fn minimize(
             break;
         }
     }
+    start.finish(packed);
     Ok(it.out)
 }
 
@@ -144,9 +124,6 @@ struct Loop {
     out: FrameOutcome,
     /// Contact: the pair list changed since the pattern's maps were made (`contact::fit`).
     relisted: bool,
-    /// `StabilityTest::Damped`: the viscous coefficient for the flow after the escape just
-    /// found (`damped::coefficient`).
-    flow: Option<f64>,
     progress: Progress,
 }
 
@@ -184,7 +161,7 @@ impl Loop {
     fn leave(
         &mut self,
         packed: &mut PackedPatch,
-        pattern: &mut Pattern,
+        pattern: &Pattern,
         chol: &mut CholeskySolver,
         settings: &SolverSettings,
         at: &Point,
@@ -198,7 +175,7 @@ impl Loop {
         let clock = std::time::Instant::now();
         let (values, scale) = (&self.values, self.energy_scale);
         let left = match settings.stability_test {
-            StabilityTest::Inertia | StabilityTest::FactorModes | StabilityTest::Damped => {
+            StabilityTest::Inertia | StabilityTest::FactorModes => {
                 self.leave_unstable(packed, pattern, chol, (at.phi, settle, settings.stability_test), &energy_at)
             }
             StabilityTest::ShiftedCholesky => leave_saddle(packed, pattern, chol, values, at.phi, scale, &energy_at)
@@ -217,10 +194,6 @@ impl Loop {
                 packed.state.x = x;
                 self.relisted |= contact::relist(packed);
                 self.out.escapes += 1;
-                if let Some(kappa) = self.flow.take() {
-                    let flow = damped::flow(packed, pattern, chol, settings, kappa);
-                    self.out.absorb(flow);
-                }
                 self.out.converged = false;
                 self.progress.restart();
                 true
@@ -239,7 +212,7 @@ impl Loop {
     /// is above SETTLED_STEP is not converged yet. Where the LDL^T breaks down (a zero pivot), the
     /// shifted-Cholesky test decides.
     fn leave_unstable(
-        &mut self,
+        &self,
         packed: &PackedPatch,
         pattern: &Pattern,
         chol: &mut CholeskySolver,
@@ -258,10 +231,7 @@ impl Loop {
                 }
             }
             Some(Verdict::Stable) => Leave::Stay,
-            Some(Verdict::Unstable { direction, curvature, .. }) => {
-                if how == StabilityTest::Damped {
-                    self.flow = Some(damped::coefficient(packed, pattern, &direction, curvature));
-                }
+            Some(Verdict::Unstable { direction, .. }) => {
                 stability::escape(&packed.state.x, &pattern.dof, &direction, phi, packed.length_scale, energy_at)
                     .map_or(Leave::Stay, Leave::Escape)
             }

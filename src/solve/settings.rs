@@ -80,9 +80,6 @@ pub enum StabilityTest {
     /// one solve each, no eigen-solver; issue 67 item 6). LOBPCG as `Inertia` only where they
     /// show no curvature above round-off.
     FactorModes,
-    /// EXPERIMENT (removed in the next commit): the inertia as `Inertia`, and past each escape
-    /// a damped flow (`damped.rs`).
-    Damped,
 }
 
 /// How a Newton step is made safe where the Hessian is indefinite (buckling): the step's
