@@ -21,8 +21,6 @@ const MAX_HALVINGS: u32 = 40;
 pub(super) const ROUND_OFF: f64 = 1e-13;
 /// Saddles left per frame at most.
 pub(super) const MAX_ESCAPES: u32 = 4;
-/// EXPERIMENT (issue 67 item 6): the cap on escapes, settable by a measuring driver.
-pub static ESCAPE_CAP: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(MAX_ESCAPES);
 /// What happened in one frame's solve: the columns of a patch's report in `stats.jsonl`
 /// (serialized under those names).
 #[derive(Clone, Debug, Default, serde::Serialize)]

@@ -30,6 +30,6 @@ mod trust_region;
 pub use elements::{AnchorElem, CellElem, Elements, HingeElem, MembraneElem, PinElem, SpringElem, TetElem};
 pub use error::SolveError;
 pub use frame::solve_frame;
-pub use iteration::{FrameOutcome, SolveCounters, ESCAPE_CAP};
+pub use iteration::{FrameOutcome, SolveCounters};
 pub use packed::{Carry, LocalReport, PackedPatch, PackedState, SolverCache};
 pub use settings::{Globalization, KktMethod, LinearSolver, Precision, SolveMode, SolverSettings, StabilityTest};

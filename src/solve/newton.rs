@@ -8,7 +8,7 @@ use super::error::{Quantity, SolveError};
 use super::eval::{assemble, energy, Assembly, EnergyParts};
 use super::iteration::{
     evaluate, factorize_shifted, line_search, mean_abs_diagonal, step, symmetric_product, symmetric_product_into,
-    timed, FrameOutcome, FrameStart, Search, ROUND_OFF,
+    timed, FrameOutcome, FrameStart, Search, MAX_ESCAPES, ROUND_OFF,
 };
 use super::linear::CholeskySolver;
 use super::packed::PackedPatch;
@@ -76,7 +76,7 @@ pub(super) fn newton(
         let at = Point { phi, residual, gnorm, filter };
         if it.progress.record(residual) {
             it.out.converged = true;
-            let check = settings.stability_check && inertia.is_none() && n > 0 && it.out.escapes < super::iteration::ESCAPE_CAP.load(std::sync::atomic::Ordering::Relaxed);
+            let check = settings.stability_check && inertia.is_none() && n > 0 && it.out.escapes < MAX_ESCAPES;
             if check && it.leave(packed, pattern, chol, settings, &at, &total) {
                 continue;
             }
