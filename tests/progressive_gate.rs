@@ -417,7 +417,14 @@ fn progressive_patch_3d() {
         let c = coarse.step();
         let tc = t.elapsed().as_secs_f64();
         volume_transfer(&mut coarse.world, &mut fine.world);
+        // (`SKINSIM_POLISH_FIRST_CHECKED`: the first increment's polish with the stability test)
+        let checked = f == 1 && std::env::var("SKINSIM_POLISH_FIRST_CHECKED").is_ok();
+        let check = |w: &mut World, on: bool| {
+            w.query::<&mut skinsim::solve::SolverSettings>().iter_mut(w).for_each(|mut s| s.stability_check = on);
+        };
+        check(&mut fine.world, checked);
         let p = fine.step();
+        check(&mut fine.world, false);
         let tb = t.elapsed().as_secs_f64();
         (tp, tq) = (tp + ta, tq + tb);
         let step = if rel.contains("small") { 30.0 / 64.0 } else { 30.0 / 256.0 } * 1e-3;
