@@ -197,10 +197,6 @@ fn gate_by(rel: &str, edits: &[(&str, &str)], carry: Carry, frames: std::ops::Ra
     let fine_scene = common::load(rel);
     let coarse_scene = common::variant(rel, edits);
     let mut fine = Simulation::new(&fine_scene);
-    fine.world
-        .query::<&mut skinsim::solve::SolverSettings>()
-        .iter_mut(&mut fine.world)
-        .for_each(|mut s| s.stability_check = false);
     let mut coarse = Simulation::new(&coarse_scene);
     let mut sums = [0u32; 4];
     eprintln!("{rel}: per frame, Newton iterations (final energy J, or its change against plain)");
@@ -315,20 +311,28 @@ fn gate_finger() {
     gate("character/finger.ron", &[("cells: (64, 156)", "cells: (32, 80)")], &["skin"], 1..=frames);
 }
 
+/// The 3D patch the drivers run (`SKINSIM_GATE_SCENE`, default the full one), its frames
+/// (`SKINSIM_GATE_FRAMES`, default `frames`) and the edits that make its coarse level: the
+/// slab's grids halved.
+fn patch_3d_levels(frames: u32) -> (String, u32, &'static [(&'static str, &'static str)]) {
+    let rel = std::env::var("SKINSIM_GATE_SCENE").unwrap_or("h15/patch_3d.ron".into());
+    let frames = std::env::var("SKINSIM_GATE_FRAMES").ok().and_then(|v| v.parse().ok()).unwrap_or(frames);
+    let edits: &'static [(&str, &str)] = if rel.contains("small") {
+        &[("cells: (64, 44)", "cells: (32, 22)")]
+    } else {
+        &[("cells: (256, 176)", "cells: (128, 88)")]
+    };
+    (rel, frames, edits)
+}
+
 /// Issue 67 item 6's first lever: H15's 3D patch from a coarse level made by the slab's in-plane
 /// coarsening (the SC grid and every coarsened grid below it halved), carried through the
 /// coarse tets. `SKINSIM_GATE_SCENE=h15/patch_3d_small.ron` for the quick patch (its coarse level
 /// no longer resolves the wavelength: a check of the code only).
 #[test]
-#[ignore = "issue 67 item 6: prints figures for the closing note; the full patch takes an hour"]
+#[ignore = "issue 67 item 6: prints figures for the closing note; the full patch takes 20 minutes"]
 fn gate_patch_3d() {
-    let rel = std::env::var("SKINSIM_GATE_SCENE").unwrap_or("h15/patch_3d.ron".into());
-    let frames: u32 = std::env::var("SKINSIM_GATE_FRAMES").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
-    let edits: &[(&str, &str)] = if rel.contains("small") {
-        &[("cells: (64, 44)", "cells: (32, 22)")]
-    } else {
-        &[("cells: (256, 176)", "cells: (128, 88)")]
-    };
+    let (rel, frames, edits) = patch_3d_levels(2);
     gate_by(&rel, edits, Carry::Volume, 1..=frames);
 }
 
@@ -389,22 +393,12 @@ fn wavelength_along_x(world: &mut World, name: &str, step: f64) -> f64 {
 /// of the same scene, and prints both runs' energies, times and dominant wavelengths. (A
 /// polish allowed one escape was measured with commit 25bd176: `src/solve/README.md`.)
 #[test]
-#[ignore = "issue 67 item 6: prints figures for the closing note; the full patch takes half an hour"]
+#[ignore = "issue 67 item 6: prints figures for the closing note; the full patch takes 15 minutes"]
 fn progressive_patch_3d() {
-    let rel = std::env::var("SKINSIM_GATE_SCENE").unwrap_or("h15/patch_3d.ron".into());
-    let frames: u32 = std::env::var("SKINSIM_GATE_FRAMES").ok().and_then(|v| v.parse().ok()).unwrap_or(3);
-    let edits: &[(&str, &str)] = if rel.contains("small") {
-        &[("cells: (64, 44)", "cells: (32, 22)")]
-    } else {
-        &[("cells: (256, 176)", "cells: (128, 88)")]
-    };
+    let (rel, frames, edits) = patch_3d_levels(3);
     let fine_scene = common::load(&rel);
     let mut plain = Simulation::new(&fine_scene);
     let mut fine = Simulation::new(&fine_scene);
-    fine.world
-        .query::<&mut skinsim::solve::SolverSettings>()
-        .iter_mut(&mut fine.world)
-        .for_each(|mut s| s.stability_check = false);
     let mut coarse = Simulation::new(&common::variant(&rel, edits));
     let (mut tp, mut tq) = (0.0, 0.0);
     eprintln!("{rel}: per increment, today's run against coarse + fine polish (no stability test)");
